@@ -1,0 +1,258 @@
+"""Loading configuration: motor parameters and threshold profiles from TOML, validated on load.
+
+Files live in ``params/`` (``params/motors/*.toml``, ``params/profiles/*.toml``); a name without a path
+(``--profile flight``, ``--params paper_x2212``) is looked up there. Every problem is reported as one
+:class:`~mav_motor_health.errors.ConfigError` naming the file, the key and what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from .diagnosis.profile import PersistenceRule, SteadyRule, ThresholdProfile
+from .errors import ConfigError
+from .model.params import MotorParams
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+__all__ = [
+    "DEFAULT_MOTOR",
+    "DEFAULT_PROFILE",
+    "PARAMS_DIR",
+    "dump_motor_params",
+    "load_motor_params",
+    "load_profile",
+    "read_toml",
+    "resolve_params_file",
+]
+
+#: The bundled ``params/`` folder (a link to the repository's ``params/``).
+PARAMS_DIR = Path(__file__).resolve().parent / "params"
+DEFAULT_MOTOR = "paper_x2212"
+DEFAULT_PROFILE = "testbed"
+
+
+def resolve_params_file(name_or_path: str | Path, kind: str) -> Path:
+    """A path as given, or a bundled file by name: ``params/<kind>/<name>.toml``."""
+    candidate = Path(name_or_path)
+    if candidate.suffix == ".toml" or candidate.exists() or len(candidate.parts) > 1:
+        return candidate
+    bundled = PARAMS_DIR / kind / f"{name_or_path}.toml"
+    if bundled.exists():
+        return bundled
+    known = sorted(p.stem for p in (PARAMS_DIR / kind).glob("*.toml"))
+    raise ConfigError(
+        f"no {kind[:-1]} named '{name_or_path}'", expected=f"a TOML file path or one of {known}"
+    )
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    path = Path(path)
+    try:
+        with path.open("rb") as handle:
+            return tomllib.load(handle)
+    except FileNotFoundError:
+        raise ConfigError("file not found", path=path) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"not valid TOML: {exc}", path=path) from exc
+
+
+class _Section:
+    """Reads one TOML table with type checks; ``done()`` rejects keys nobody asked for."""
+
+    def __init__(self, data: Any, path: Path, prefix: str) -> None:
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"is a {type(data).__name__}", path=path, key=prefix, expected="a table")
+        self.data, self.path, self.prefix = data, path, prefix
+        self.used: set[str] = set()
+
+    def key(self, name: str) -> str:
+        return f"{self.prefix}.{name}" if self.prefix else name
+
+    def number(
+        self,
+        name: str,
+        default: float | None = None,
+        *,
+        minimum: float | None = None,
+        maximum: float | None = None,
+        unit: str = "",
+    ) -> float:
+        self.used.add(name)
+        if name not in self.data:
+            if default is None:
+                raise ConfigError(
+                    "missing", path=self.path, key=self.key(name), expected=f"a number {unit}".strip()
+                )
+            return default
+        value = self.data[name]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ConfigError(
+                f"{value!r} is not a finite number",
+                path=self.path,
+                key=self.key(name),
+                expected=f"a number {unit}".strip(),
+            )
+        if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+            rng = (
+                f"between {minimum} and {maximum}"
+                if minimum is not None and maximum is not None
+                else (f">= {minimum}" if minimum is not None else f"<= {maximum}")
+            )
+            raise ConfigError(
+                f"{value!r} is out of range",
+                path=self.path,
+                key=self.key(name),
+                expected=f"{rng} {unit}".strip(),
+            )
+        return float(value)
+
+    def text(self, name: str, default: str) -> str:
+        self.used.add(name)
+        value = self.data.get(name, default)
+        if not isinstance(value, str):
+            raise ConfigError(
+                f"{value!r} is not text", path=self.path, key=self.key(name), expected="a string"
+            )
+        return value
+
+    def table(self, name: str) -> _Section:
+        self.used.add(name)
+        return _Section(self.data.get(name, {}), self.path, self.key(name))
+
+    def raw(self, name: str) -> Any:
+        self.used.add(name)
+        return self.data.get(name)
+
+    def done(self) -> None:
+        unknown = sorted(set(self.data) - self.used)
+        if unknown:
+            raise ConfigError(
+                f"unknown key(s) {', '.join(unknown)}",
+                path=self.path,
+                key=self.prefix or None,
+                expected=f"only {', '.join(sorted(self.used))}",
+            )
+
+
+def load_motor_params(name_or_path: str | Path = DEFAULT_MOTOR) -> MotorParams:
+    """Motor parameters from a TOML file with a ``[motor]`` table (and optional ``[source]`` notes)."""
+    path = resolve_params_file(name_or_path, "motors")
+    data = read_toml(path)
+    top = _Section(data, path, "")
+    motor = top.table("motor")
+    top.raw("source")  # free-form provenance, kept in the file only
+    top.done()
+    values = {
+        "R_ohm": motor.number("R_ohm", minimum=1e-6, unit="ohm"),
+        "k_e": motor.number("k_e", minimum=1e-7, unit="V*s/rad"),
+        "C_p": motor.number("C_p", minimum=0.0, unit="N*m/(rad/s)^k"),
+        "B": motor.number("B", 0.0, unit="N*m/(rad/s)"),
+        "T_f": motor.number("T_f", 0.0, unit="N*m"),
+        "k": motor.number("k", 3.0, minimum=0.5, maximum=6.0),
+    }
+    name = motor.text("name", path.stem)
+    effects_section = motor.table("effects")
+    effects = []
+    for effect_name in effects_section.data:
+        sub = effects_section.table(effect_name)
+        params = tuple((key, sub.number(key)) for key in list(sub.data))
+        sub.done()
+        effects.append((effect_name, params))
+    effects_section.done()
+    motor.done()
+    try:
+        return MotorParams(**values, name=name, effects=tuple(effects))
+    except ConfigError as exc:
+        raise ConfigError(
+            exc.reason, path=path, key=f"motor.{exc.key}" if exc.key else None, expected=exc.expected
+        ) from None
+
+
+def dump_motor_params(params: MotorParams, source: Mapping[str, str] | None = None) -> str:
+    """TOML text for a motor that :func:`load_motor_params` reads back exactly."""
+    lines = ["[motor]", f"name = {_toml_string(params.name)}"]
+    for key in ("R_ohm", "k_e", "C_p", "B", "T_f", "k"):
+        lines.append(f"{key} = {float(getattr(params, key))!r}")
+    for effect_name, values in params.effects:
+        lines += ["", f"[motor.effects.{effect_name}]"]
+        lines += [f"{k} = {float(v)!r}" for k, v in values]
+    if source:
+        lines += ["", "[source]"] + [f"{k} = {_toml_string(str(v))}" for k, v in source.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _toml_string(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+
+
+def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile:
+    """A threshold profile from a TOML file with ``[profile]``, ``[steady]`` and ``[persistence]``."""
+    path = resolve_params_file(name_or_path, "profiles")
+    top = _Section(read_toml(path), path, "")
+    p = top.table("profile")
+    steady = top.table("steady")
+    pers = top.table("persistence")
+    top.raw("source")
+    top.done()
+    band_raw = p.raw("current_band_a")
+    if band_raw is None:
+        band: tuple[tuple[float, float], ...] = ((4.0, 0.25), (11.0, 2.5))
+    else:
+        ok = isinstance(band_raw, list) and all(
+            isinstance(pair, list)
+            and len(pair) == 2
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in pair)
+            for pair in band_raw
+        )
+        if not ok:
+            raise ConfigError(
+                f"{band_raw!r}",
+                path=path,
+                key="profile.current_band_a",
+                expected="a list of [voltage_v, halfwidth_a] pairs of numbers",
+            )
+        band = tuple((float(a), float(b)) for a, b in band_raw)
+    announce_section = pers.table("announce_s")
+    announce = tuple(
+        (label, announce_section.number(label, minimum=0.0, unit="s"))
+        for label in list(announce_section.data)
+    )
+    announce_section.done()
+    try:
+        profile = ThresholdProfile(
+            name=p.text("name", path.stem),
+            description=p.text("description", ""),
+            speed_band_rad_s=p.number("speed_band_rad_s", 20.0, minimum=0.0, unit="rad/s"),
+            current_band_a=band,
+            stop_speed_rad_s=p.number("stop_speed_rad_s", 100.0, minimum=0.0, unit="rad/s"),
+            stall_split_a=p.number("stall_split_a", 6.0, minimum=0.0, unit="A"),
+            stall_split_per_v=p.number("stall_split_per_v", 0.0, unit="A/V"),
+            stall_split_ref_v=p.number("stall_split_ref_v", 11.1, minimum=0.0, unit="V"),
+            steady=SteadyRule(
+                step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
+                settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
+            ),
+            persistence=PersistenceRule(
+                default_announce_s=pers.number("default_announce_s", 0.1, minimum=0.0, unit="s"),
+                clear_s=pers.number("clear_s", 0.5, minimum=0.0, unit="s"),
+                announce_s=announce,
+            ),
+        )
+    except ConfigError as exc:
+        if exc.path is not None:
+            raise
+        raise ConfigError(
+            exc.reason, path=path, key=f"profile.{exc.key}" if exc.key else None, expected=exc.expected
+        ) from None
+    p.done()
+    steady.done()
+    pers.done()
+    return profile

@@ -1,0 +1,68 @@
+"""Persistence: a state is announced only after it has held for a set time (per state).
+
+The announced state is what the live agent publishes and what replay writes as ``announced``. Only
+*eligible* samples count (steady ones, plus states the profile allows in transients); other samples keep
+the announcement as it is and neither confirm nor break a run. The rule carries its state between calls,
+so streaming one sample at a time and replaying whole arrays give identical results.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .states import MotorState
+
+__all__ = ["PersistenceCarry", "announce"]
+
+
+@dataclass(frozen=True)
+class PersistenceCarry:
+    """What persistence remembers between calls for one motor."""
+
+    announced: int = int(MotorState.NORMAL)
+    candidate: int = int(MotorState.NORMAL)
+    candidate_since_s: float = float("-inf")
+
+
+def announce(
+    hold_s: NDArray[np.float64],
+    time_s: NDArray[np.float64],
+    state: NDArray[np.integer],
+    eligible: NDArray[np.bool_],
+    carry: PersistenceCarry = PersistenceCarry(),
+) -> tuple[NDArray[np.int8], PersistenceCarry]:
+    """Announced state per sample given raw states; ``hold_s[code]`` is each state's hold time."""
+    t = np.asarray(time_s, dtype=float)
+    s = np.asarray(state, dtype=np.int64)
+    idx = np.flatnonzero(eligible)
+    change_at: list[int] = []
+    change_to: list[int] = []
+    announced, candidate, since = carry.announced, carry.candidate, carry.candidate_since_s
+    if idx.size:
+        te, se = t[idx], s[idx]
+        boundaries = np.flatnonzero(np.diff(se)) + 1
+        starts = np.concatenate([[0], boundaries])
+        ends = np.concatenate([boundaries, [se.size]])
+        for start, end in zip(starts.tolist(), ends.tolist()):
+            run_state = int(se[start])
+            run_since = since if (start == 0 and run_state == candidate) else float(te[start])
+            candidate, since = run_state, run_since
+            if run_state == announced:
+                continue
+            due = run_since + float(hold_s[run_state])
+            j = start + int(np.searchsorted(te[start:end], due, side="left"))
+            if j < end:
+                announced = run_state
+                change_at.append(int(idx[j]))
+                change_to.append(run_state)
+    out = np.full(t.size, carry.announced, dtype=np.int8)
+    if change_at:
+        positions = np.asarray(change_at)
+        which = np.searchsorted(positions, np.arange(t.size), side="right") - 1
+        values = np.asarray(change_to, dtype=np.int8)
+        has = which >= 0
+        out[has] = values[which[has]]
+    return out, PersistenceCarry(announced=announced, candidate=candidate, candidate_since_s=since)

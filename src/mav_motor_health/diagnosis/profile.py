@@ -1,0 +1,124 @@
+"""Threshold profiles: the decision tree's limits as data (paper section III.B).
+
+A profile holds the bands around the model, the stop speed and the stall-current split, the
+steady-state rule's settings and the persistence times. ``testbed`` is the paper's; ``flight`` is tuned
+for fluctuating input. Profiles load from TOML in ``params/profiles/`` (see :mod:`..config`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import ConfigError
+from .states import MotorState
+
+__all__ = ["PersistenceRule", "SteadyRule", "ThresholdProfile"]
+
+
+@dataclass(frozen=True)
+class SteadyRule:
+    """When a sample counts as steady state.
+
+    ``step_v``: a change of input voltage larger than this between two samples is a step;
+    ``settle_s``: after a step, samples are not steady for this long (the motor's response settles).
+    """
+
+    step_v: float = 0.2
+    settle_s: float = 0.3
+
+    def __post_init__(self) -> None:
+        if not (self.step_v > 0 and self.settle_s >= 0):
+            raise ConfigError(
+                "step_v must be > 0 and settle_s >= 0", key="steady", expected="step_v > 0 V, settle_s >= 0 s"
+            )
+
+
+@dataclass(frozen=True)
+class PersistenceRule:
+    """How long a state must hold before it is announced (``announce_s``), per state label.
+
+    ``default_announce_s`` applies to states not listed. Returning to NORMAL uses ``clear_s``.
+    """
+
+    default_announce_s: float = 0.1
+    announce_s: tuple[tuple[str, float], ...] = ()
+    clear_s: float = 0.5
+
+    def __post_init__(self) -> None:
+        values = [self.default_announce_s, self.clear_s, *(v for _, v in self.announce_s)]
+        if any(not (v >= 0) for v in values):
+            raise ConfigError("persistence times must be >= 0 s", key="persistence", expected="seconds >= 0")
+        for label, _ in self.announce_s:
+            try:
+                MotorState.from_label(label)
+            except ValueError as exc:
+                raise ConfigError(str(exc), key=f"persistence.announce_s.{label}") from None
+
+    def hold_s(self) -> NDArray[np.float64]:
+        """Hold time per state code (index = :class:`MotorState` value)."""
+        holds = np.full(len(MotorState), self.default_announce_s)
+        holds[MotorState.NORMAL] = self.clear_s
+        for label, value in self.announce_s:
+            holds[MotorState.from_label(label)] = value
+        return holds
+
+
+@dataclass(frozen=True)
+class ThresholdProfile:
+    """The limits of the decision tree (Fig. 7) and the rules around it.
+
+    The current band's half-width is interpolated linearly in input voltage between the anchor points
+    ``current_band_a`` (pairs of voltage [V], half-width [A]) and held at the end values outside them
+    (``np.interp``): the paper gives ±0.25 A at the low end and ±2.5 A at the high end of 4–11 V.
+    """
+
+    name: str
+    speed_band_rad_s: float = 20.0
+    current_band_a: tuple[tuple[float, float], ...] = ((4.0, 0.25), (11.0, 2.5))
+    stop_speed_rad_s: float = 100.0
+    stall_split_a: float = 6.0
+    stall_split_per_v: float = 0.0
+    stall_split_ref_v: float = 11.1
+    steady: SteadyRule = field(default_factory=SteadyRule)
+    persistence: PersistenceRule = field(default_factory=PersistenceRule)
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.speed_band_rad_s > 0:
+            raise ConfigError(
+                f"{self.speed_band_rad_s!r}", key="speed_band_rad_s", expected="a band > 0 rad/s"
+            )
+        if not self.stop_speed_rad_s >= 0:
+            raise ConfigError(f"{self.stop_speed_rad_s!r}", key="stop_speed_rad_s", expected=">= 0 rad/s")
+        if not self.stall_split_a > 0:
+            raise ConfigError(f"{self.stall_split_a!r}", key="stall_split_a", expected="a current > 0 A")
+        band = self.current_band_a
+        if len(band) < 1 or any(len(p) != 2 for p in band):
+            raise ConfigError(
+                "needs at least one [voltage_v, halfwidth_a] pair",
+                key="current_band_a",
+                expected="a list of [voltage_v, halfwidth_a] pairs",
+            )
+        volts = [p[0] for p in band]
+        if any(b <= a for a, b in zip(volts, volts[1:])):
+            raise ConfigError("voltages must increase", key="current_band_a", expected="increasing voltages")
+        if any(not p[1] > 0 for p in band):
+            raise ConfigError("half-widths must be > 0 A", key="current_band_a", expected="half-widths > 0 A")
+
+    def current_halfwidth_a(self, voltage_v: ArrayLike) -> NDArray[np.float64]:
+        """Half-width of the current band at each input voltage (linear, held constant outside)."""
+        v = np.asarray(voltage_v, dtype=float)
+        xs = [p[0] for p in self.current_band_a]
+        ys = [p[1] for p in self.current_band_a]
+        return np.interp(v, xs, ys)
+
+    def stall_split(self, bus_voltage_v: ArrayLike | None = None) -> NDArray[np.float64] | float:
+        """The F2.1/F4.2 current split [A], scaled with bus voltage when ``stall_split_per_v`` is set."""
+        if bus_voltage_v is None or self.stall_split_per_v == 0:
+            return self.stall_split_a
+        bus = np.asarray(bus_voltage_v, dtype=float)
+        scaled = self.stall_split_a + self.stall_split_per_v * (bus - self.stall_split_ref_v)
+        return np.where(np.isfinite(bus), scaled, self.stall_split_a)

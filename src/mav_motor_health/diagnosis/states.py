@@ -1,0 +1,80 @@
+"""The motor states the diagnosis names (paper section III, Fig. 7), with stable integer codes."""
+
+from __future__ import annotations
+
+import enum
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["MotorState", "state_names"]
+
+
+class MotorState(enum.IntEnum):
+    """States of one motor. Integer codes are stable (they go into MAVLink NAMED_VALUE_INT and files)."""
+
+    NORMAL = 0
+    F1_1 = 1  # bearing friction increase
+    F2_1 = 2  # phase open
+    F3_1 = 3  # propeller damage
+    F4_1 = 4  # transistor open
+    F4_2 = 5  # back-EMF signal error
+    UNKNOWN = 6  # a combination the tree does not name
+    NO_DATA = 7  # telemetry missing or stale
+    SENSOR_FAULT = 8  # a signal is implausible: the sensor, not the motor, is suspect
+
+    @property
+    def label(self) -> str:
+        """The paper's name: ``F3.1``, ``NORMAL``..."""
+        return _LABELS[self]
+
+    @property
+    def description(self) -> str:
+        return _DESCRIPTIONS[self]
+
+    @property
+    def is_fault(self) -> bool:
+        return self in _FAULTS
+
+    @classmethod
+    def from_label(cls, label: str) -> MotorState:
+        try:
+            return _BY_LABEL[label.strip().upper()]
+        except KeyError:
+            raise ValueError(
+                f"unknown motor state {label!r}; expected one of {', '.join(_BY_LABEL)}"
+            ) from None
+
+
+_LABELS = {
+    MotorState.NORMAL: "NORMAL",
+    MotorState.F1_1: "F1.1",
+    MotorState.F2_1: "F2.1",
+    MotorState.F3_1: "F3.1",
+    MotorState.F4_1: "F4.1",
+    MotorState.F4_2: "F4.2",
+    MotorState.UNKNOWN: "UNKNOWN",
+    MotorState.NO_DATA: "NO_DATA",
+    MotorState.SENSOR_FAULT: "SENSOR_FAULT",
+}
+_DESCRIPTIONS = {
+    MotorState.NORMAL: "normal",
+    MotorState.F1_1: "bearing friction",
+    MotorState.F2_1: "phase open",
+    MotorState.F3_1: "propeller damage",
+    MotorState.F4_1: "transistor open",
+    MotorState.F4_2: "back-EMF signal error",
+    MotorState.UNKNOWN: "unknown fault",
+    MotorState.NO_DATA: "no telemetry",
+    MotorState.SENSOR_FAULT: "sensor implausible",
+}
+_BY_LABEL = {label: state for state, label in _LABELS.items()}
+_FAULTS = frozenset(
+    {MotorState.F1_1, MotorState.F2_1, MotorState.F3_1, MotorState.F4_1, MotorState.F4_2, MotorState.UNKNOWN}
+)
+
+
+def state_names(codes: NDArray[np.integer]) -> NDArray[np.str_]:
+    """Labels (``"F3.1"``...) for an array of state codes."""
+    table = np.array([_LABELS[s] for s in MotorState])
+    return table[np.asarray(codes, dtype=np.int64)]

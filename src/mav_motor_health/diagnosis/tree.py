@@ -1,0 +1,66 @@
+"""The fault decision tree (paper Fig. 7, section III.B), vectorised over samples.
+
+Our reading of the paper, checked against the transitions it reports in section IV.A:
+
+1. ω below the stop speed (100 rad/s): ``F2.1`` if i < 6 A, else ``F4.2`` (the motor stalls; a broken
+   back-EMF signal keeps the phases driven and draws more current than an open phase);
+2. ω above the speed band and i below the current band: ``F3.1`` (a lighter propeller);
+3. ω and i both inside their bands: ``NORMAL``;
+4. otherwise, with ω inside or below its band: ``F1.1`` if i is above its band (friction: slower and more
+   current), else ``F4.1`` (an open transistor: slower and less current);
+5. anything else (ω above its band with i inside or above): ``UNKNOWN``.
+
+Rule 1 applies only where the model itself expects the motor to turn faster than the stop speed plus the
+speed band: a motor at idle or disarmed is not "stopped" in the paper's sense (its testbed never ran below
+4 V, 390 rad/s). This is our addition.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .profile import ThresholdProfile
+from .states import MotorState
+
+__all__ = ["classify"]
+
+
+def classify(
+    profile: ThresholdProfile,
+    *,
+    omega_rad_s: ArrayLike,
+    omega_model_rad_s: ArrayLike,
+    current_a: ArrayLike,
+    current_model_a: ArrayLike,
+    voltage_v: ArrayLike,
+    bus_voltage_v: ArrayLike | None = None,
+) -> NDArray[np.int8]:
+    """State code per sample (see :class:`MotorState`); NaN inputs give ``NO_DATA``."""
+    w, w_model, i, i_model, v = np.broadcast_arrays(
+        *(
+            np.asarray(x, dtype=float)
+            for x in (omega_rad_s, omega_model_rad_s, current_a, current_model_a, voltage_v)
+        )
+    )
+    band_i = profile.current_halfwidth_a(v)
+    band_w = profile.speed_band_rad_s
+    split = np.broadcast_to(profile.stall_split(bus_voltage_v), w.shape)
+
+    speed_low = w < w_model - band_w
+    speed_high = w > w_model + band_w
+    current_low = i < i_model - band_i
+    current_high = i > i_model + band_i
+    # Rule 1 needs the model to expect a turning motor: an idle or disarmed motor is not a stalled one.
+    stopped = (np.abs(w) < profile.stop_speed_rad_s) & (w_model >= profile.stop_speed_rad_s + band_w)
+
+    state = np.full(w.shape, MotorState.UNKNOWN, dtype=np.int8)
+    not_high = ~speed_high
+    state[not_high & current_high] = MotorState.F1_1
+    state[not_high & ~current_high] = MotorState.F4_1
+    state[not_high & ~speed_low & ~current_low & ~current_high] = MotorState.NORMAL
+    state[speed_high & current_low] = MotorState.F3_1
+    state[stopped] = np.where(i[stopped] < split[stopped], MotorState.F2_1, MotorState.F4_2)
+    missing = ~(np.isfinite(w) & np.isfinite(w_model) & np.isfinite(i) & np.isfinite(i_model))
+    state[missing] = MotorState.NO_DATA
+    return state

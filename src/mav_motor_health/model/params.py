@@ -1,0 +1,94 @@
+"""Motor parameters as a value: the steady-state model of a UAV motor (BLDC motor + propeller + ESC).
+
+Symbols follow the paper (Lee et al., section II): eq. 2 ``V = R·i + k_e·ω`` and eq. 7
+``k_t·i = C_p·ω^k + B·ω + T_f`` with ``k_t = k_e`` in SI units.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from ..errors import ConfigError
+
+__all__ = ["PARAMETER_UNITS", "MotorParams"]
+
+#: Unit of every motor parameter, by the name it has everywhere (TOML, JSON, reports).
+PARAMETER_UNITS: dict[str, str] = {
+    "R_ohm": "ohm",
+    "k_e": "V*s/rad (= N*m/A, k_t = k_e)",
+    "C_p": "N*m/(rad/s)^k",
+    "B": "N*m/(rad/s)",
+    "T_f": "N*m",
+    "k": "1",
+}
+
+
+@dataclass(frozen=True)
+class MotorParams:
+    """Steady-state parameters of one motor + propeller.
+
+    ``R_ohm`` phase resistance [Ω]; ``k_e`` back-EMF constant [V·s/rad], equal to the torque constant
+    k_t [N·m/A]; ``C_p`` propeller load factor [N·m/(rad/s)^k]; ``B`` viscous damping [N·m/(rad/s)];
+    ``T_f`` dynamic friction torque [N·m]; ``k`` exponent of the propeller load (3 in the paper).
+
+    ``effects`` holds extra physical effects by name with their fitted parameters (see
+    :mod:`mav_motor_health.model.effects` where present); the base model ignores it.
+    """
+
+    R_ohm: float
+    k_e: float
+    C_p: float
+    B: float
+    T_f: float
+    k: float = 3.0
+    name: str = "motor"
+    effects: tuple[tuple[str, tuple[tuple[str, float], ...]], ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        checks = (
+            ("R_ohm", self.R_ohm > 0, "a resistance > 0 ohm"),
+            ("k_e", self.k_e > 0, "a back-EMF constant > 0 V*s/rad"),
+            ("C_p", self.C_p >= 0, "a propeller factor >= 0"),
+            ("k", 0.5 <= self.k <= 6, "an exponent between 0.5 and 6"),
+        )
+        for key in ("R_ohm", "k_e", "C_p", "B", "T_f", "k"):
+            value = getattr(self, key)
+            if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+                raise ConfigError(f"{value!r} is not a finite number", key=key, expected="a finite number")
+        for key, ok, expected in checks:
+            if not ok:
+                raise ConfigError(f"{getattr(self, key)!r} is out of range", key=key, expected=expected)
+        if self.B + self.k_e**2 / self.R_ohm <= 0:
+            raise ConfigError(
+                "B is so negative that speed no longer rises with voltage",
+                key="B",
+                expected=f"B > {-(self.k_e**2) / self.R_ohm:.3g}",
+            )
+
+    @property
+    def k_t(self) -> float:
+        """Torque constant [N·m/A]; equal to k_e in SI units."""
+        return self.k_e
+
+    @property
+    def start_voltage_v(self) -> float:
+        """Input voltage below which the friction torque T_f holds the motor still (eq. 2 with eq. 7 at ω=0)."""
+        return max(self.T_f, 0.0) * self.R_ohm / self.k_e
+
+    def effect_params(self, name: str) -> dict[str, float] | None:
+        for effect_name, values in self.effects:
+            if effect_name == name:
+                return dict(values)
+        return None
+
+    def to_dict(self) -> dict[str, Any]:
+        data = asdict(self)
+        data["effects"] = {name: dict(values) for name, values in self.effects}
+        return data
+
+    def replace(self, **changes: Any) -> MotorParams:
+        from dataclasses import replace
+
+        return replace(self, **changes)

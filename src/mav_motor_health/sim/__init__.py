@@ -1,0 +1,1 @@
+"""The project's simulated motors and hexacopter."""
