@@ -1,0 +1,81 @@
+"""What MAVLink and ArduPilot logs say about motors, in SI units: shared by the log readers and the live link.
+
+* ``ESC_TELEMETRY_1_TO_4`` (11030), ``_5_TO_8`` (11031), ``_9_TO_12`` (11032) — ArduPilot dialect:
+  per ESC ``temperature`` [°C], ``voltage`` [cV], ``current`` [cA], ``totalcurrent`` [mAh], ``rpm``
+  [1/min, mechanical: ArduPilot divides eRPM by the pole pairs itself], ``count``.
+* ``SERVO_OUTPUT_RAW``: ``servoN_raw`` [µs], the per-output command.
+* ArduPilot numbers ESC telemetry by servo output, so ESC slot ``j`` (0-based) is output ``j+1`` and
+  the motor is ``SERVO{j+1}_FUNCTION − 32`` (functions 33–44 are Motor1–Motor12). Without parameters,
+  output ``n`` drives motor ``n`` (ArduPilot's default for a hexacopter).
+* Throttle is ``(pwm − MOT_PWM_MIN) / (MOT_PWM_MAX − MOT_PWM_MIN)``, clipped to 0..1. ArduPilot uses the
+  throttle channel's range when MOT_PWM_MIN/MAX are 0; the defaults here are 1000 and 2000 µs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "ESC_TELEMETRY_MESSAGES",
+    "MOTOR_FUNCTION_FIRST",
+    "RPM_TO_RAD_S",
+    "esc_fields_to_si",
+    "motor_for_output",
+    "pwm_range",
+    "throttle_from_pwm",
+]
+
+RPM_TO_RAD_S = 2.0 * math.pi / 60.0
+#: ESC telemetry message name → index of its first ESC slot.
+ESC_TELEMETRY_MESSAGES = {"ESC_TELEMETRY_1_TO_4": 0, "ESC_TELEMETRY_5_TO_8": 4, "ESC_TELEMETRY_9_TO_12": 8}
+#: SERVOn_FUNCTION value of Motor1 (Motor2 = 34 ... Motor12 = 44 in ArduPilot's SRV_Channel list).
+MOTOR_FUNCTION_FIRST = 33
+DEFAULT_PWM_MIN_US = 1000.0
+DEFAULT_PWM_MAX_US = 2000.0
+
+
+def motor_for_output(output: int, params: Mapping[str, float] | None = None) -> int | None:
+    """Motor number (1-based) driven by servo output ``output`` (1-based), or None if it drives no motor."""
+    function = None if params is None else params.get(f"SERVO{output}_FUNCTION")
+    if function is None:
+        return output  # ArduPilot's default: output n is motor n
+    function = int(function)
+    if MOTOR_FUNCTION_FIRST <= function < MOTOR_FUNCTION_FIRST + 12:
+        return function - MOTOR_FUNCTION_FIRST + 1
+    return None
+
+
+def pwm_range(params: Mapping[str, float] | None = None) -> tuple[float, float]:
+    """The ESC's PWM range [µs] from ``MOT_PWM_MIN``/``MOT_PWM_MAX`` (0 or missing: 1000/2000 µs)."""
+    params = params or {}
+    low = (
+        float(params.get("MOT_PWM_MIN", 0) or 0) or float(params.get("RC3_MIN", 0) or 0) or DEFAULT_PWM_MIN_US
+    )
+    high = (
+        float(params.get("MOT_PWM_MAX", 0) or 0) or float(params.get("RC3_MAX", 0) or 0) or DEFAULT_PWM_MAX_US
+    )
+    if high <= low:
+        return DEFAULT_PWM_MIN_US, DEFAULT_PWM_MAX_US
+    return low, high
+
+
+def throttle_from_pwm(pwm_us: ArrayLike, low_us: float, high_us: float) -> NDArray[np.float64]:
+    """Normalised command 0..1 from a PWM pulse width; 0 µs (output off) gives 0."""
+    pwm = np.asarray(pwm_us, dtype=float)
+    return np.clip((pwm - low_us) / (high_us - low_us), 0.0, 1.0)
+
+
+def esc_fields_to_si(
+    temperature_c: ArrayLike, voltage_cv: ArrayLike, current_ca: ArrayLike, rpm: ArrayLike
+) -> dict[str, NDArray[np.float64]]:
+    """ESC_TELEMETRY raw fields to table columns (``bus_voltage_v`` is the ESC's input voltage)."""
+    return {
+        "esc_temp_c": np.asarray(temperature_c, dtype=float),
+        "bus_voltage_v": np.asarray(voltage_cv, dtype=float) / 100.0,
+        "esc_current_a": np.asarray(current_ca, dtype=float) / 100.0,
+        "omega_rad_s": np.asarray(rpm, dtype=float) * RPM_TO_RAD_S,
+    }
