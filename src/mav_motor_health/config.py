@@ -249,9 +249,10 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
     except ConfigError as exc:
         if exc.path is not None:
             raise
-        raise ConfigError(
-            exc.reason, path=path, key=f"profile.{exc.key}" if exc.key else None, expected=exc.expected
-        ) from None
+        key = exc.key
+        if key and key.split(".")[0] not in ("steady", "persistence"):
+            key = f"profile.{key}"
+        raise ConfigError(exc.reason, path=path, key=key, expected=exc.expected) from None
     p.done()
     steady.done()
     pers.done()

@@ -70,7 +70,7 @@ def faulty_steady_state(
     elif fault == "F1.1":  # a rubbing bar adds friction torque
         s = steady_state(params.replace(T_f=params.T_f + 0.05 * severity), v)
     elif fault == "F3.1":  # blades trimmed: the propeller load falls
-        s = steady_state(params.replace(C_p=params.C_p * max(1.0 - 0.85 * severity, 0.05)), v)
+        s = steady_state(params.replace(C_p=params.C_p * max(1.0 - 0.9 * severity, 0.05)), v)
     elif fault == "F4.1":  # one switch open: two phases share the current, a larger drop at high current
         s = steady_state(params.replace(R_ohm=params.R_ohm * (1.0 + 2.0 * severity)), v)
     elif fault == "F2.1":  # the motor stops; about 3 A flows
