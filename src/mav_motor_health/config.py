@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from .diagnosis.plausibility import PlausibilityRule
 from .diagnosis.profile import PersistenceRule, SteadyRule, ThresholdProfile
 from .errors import ConfigError
 from .model.params import MotorParams
@@ -158,6 +159,7 @@ def load_motor_params(name_or_path: str | Path = DEFAULT_MOTOR) -> MotorParams:
         "T_f": motor.number("T_f", 0.0, unit="N*m"),
         "k": motor.number("k", 3.0, minimum=0.5, maximum=6.0),
     }
+    inertia = motor.number("J_kg_m2", 0.0, minimum=0.0, unit="kg*m^2")
     name = motor.text("name", path.stem)
     effects_section = motor.table("effects")
     effects = []
@@ -169,7 +171,7 @@ def load_motor_params(name_or_path: str | Path = DEFAULT_MOTOR) -> MotorParams:
     effects_section.done()
     motor.done()
     try:
-        return MotorParams(**values, name=name, effects=tuple(effects))
+        return MotorParams(**values, name=name, effects=tuple(effects), J_kg_m2=inertia or None)
     except ConfigError as exc:
         raise ConfigError(
             exc.reason, path=path, key=f"motor.{exc.key}" if exc.key else None, expected=exc.expected
@@ -179,8 +181,9 @@ def load_motor_params(name_or_path: str | Path = DEFAULT_MOTOR) -> MotorParams:
 def dump_motor_params(params: MotorParams, source: Mapping[str, str] | None = None) -> str:
     """TOML text for a motor that :func:`load_motor_params` reads back exactly."""
     lines = ["[motor]", f"name = {_toml_string(params.name)}"]
-    for key in ("R_ohm", "k_e", "C_p", "B", "T_f", "k"):
-        lines.append(f"{key} = {float(getattr(params, key))!r}")
+    for key in ("R_ohm", "k_e", "C_p", "B", "T_f", "k", "J_kg_m2"):
+        if getattr(params, key) is not None:
+            lines.append(f"{key} = {float(getattr(params, key))!r}")
     for effect_name, values in params.effects:
         lines += ["", f"[motor.effects.{effect_name}]"]
         lines += [f"{k} = {float(v)!r}" for k, v in values]
@@ -200,6 +203,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
     p = top.table("profile")
     steady = top.table("steady")
     pers = top.table("persistence")
+    plaus = top.table("plausibility")
     top.raw("source")
     top.done()
     band_raw = p.raw("current_band_a")
@@ -239,6 +243,15 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             steady=SteadyRule(
                 step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
                 settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
+                kind=steady.text("kind", "step"),
+                lag_fraction=steady.number("lag_fraction", 0.5, minimum=0.0),
+            ),
+            plausibility=PlausibilityRule(
+                **{
+                    name: plaus.number(name, default)
+                    for name, default in PlausibilityRule().__dict__.items()
+                    if name in plaus.data
+                }
             ),
             persistence=PersistenceRule(
                 default_announce_s=pers.number("default_announce_s", 0.1, minimum=0.0, unit="s"),
@@ -250,10 +263,11 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
         if exc.path is not None:
             raise
         key = exc.key
-        if key and key.split(".")[0] not in ("steady", "persistence"):
+        if key and key.split(".")[0] not in ("steady", "persistence", "plausibility"):
             key = f"profile.{key}"
         raise ConfigError(exc.reason, path=path, key=key, expected=exc.expected) from None
     p.done()
     steady.done()
     pers.done()
+    plaus.done()
     return profile

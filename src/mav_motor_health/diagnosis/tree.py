@@ -10,6 +10,10 @@ Our reading of the paper, checked against the transitions it reports in section 
    current), else ``F4.1`` (an open transistor: slower and less current);
 5. anything else (ω above its band with i inside or above): ``UNKNOWN``.
 
+Where the current is absent or not trusted (``current_trusted`` False), only speed is used: ``STALLED``
+(F2.1 or F4.2) below the stop speed, ``SLOW`` (F1.1 or F4.1) below the speed band, ``FAST`` (F3.1) above it,
+else ``NORMAL``: the states name the faults that speed alone cannot tell apart.
+
 Rule 1 applies only where the model itself expects the motor to turn faster than the stop speed plus the
 speed band: a motor at idle or disarmed is not "stopped" in the paper's sense (its testbed never ran below
 4 V, 390 rad/s). This is our addition.
@@ -35,6 +39,7 @@ def classify(
     current_model_a: ArrayLike,
     voltage_v: ArrayLike,
     bus_voltage_v: ArrayLike | None = None,
+    current_trusted: ArrayLike | None = None,
 ) -> NDArray[np.int8]:
     """State code per sample (see :class:`MotorState`); NaN inputs give ``NO_DATA``."""
     w, w_model, i, i_model, v = np.broadcast_arrays(
@@ -63,4 +68,13 @@ def classify(
     state[stopped] = np.where(i[stopped] < split[stopped], MotorState.F2_1, MotorState.F4_2)
     missing = ~(np.isfinite(w) & np.isfinite(w_model) & np.isfinite(i) & np.isfinite(i_model))
     state[missing] = MotorState.NO_DATA
+    # Speed only, where the current is absent or untrusted: say what speed can say, and no more.
+    speed_only = ~np.isfinite(i) if current_trusted is None else ~np.broadcast_to(current_trusted, w.shape)
+    speed_only = speed_only & np.isfinite(w) & np.isfinite(w_model)
+    if np.any(speed_only):
+        only = np.full(w.shape, MotorState.NORMAL, dtype=np.int8)
+        only[speed_low] = MotorState.SLOW
+        only[speed_high] = MotorState.FAST
+        only[stopped] = MotorState.STALLED
+        state[speed_only] = only[speed_only]
     return state

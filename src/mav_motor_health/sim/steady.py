@@ -109,7 +109,9 @@ def testbed_run(
     blend = np.where(t < fault_at_s, 0.0, 1.0 - np.exp(-(t - fault_at_s) / time_constant_s))
     omega = healthy.omega_rad_s[0] + blend * (w_fault[0] - healthy.omega_rad_s[0])
     current = healthy.current_a[0] + blend * (i_fault[0] - healthy.current_a[0])
-    omega = omega + rng.uniform(-noise.speed_rad_s, noise.speed_rad_s, t.shape)
+    omega = np.abs(
+        omega + rng.uniform(-noise.speed_rad_s, noise.speed_rad_s, t.shape)
+    )  # an RPM sensor reads >= 0
     current = current + rng.uniform(-1.0, 1.0, t.shape) * noise.current_halfwidth_a(v)
     return {
         "time_s": t,
