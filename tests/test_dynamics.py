@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mav_motor_health.model import MotorParams
-from mav_motor_health.model.dynamics import ResponseCarry, first_order_response, time_constant_s
+from mav_motor_health.model.dynamics import first_order_response, time_constant_s
 
 
 def looped(t, x, tau):
