@@ -232,7 +232,9 @@ def read_ulog_topics(path: str | Path, topics: Iterable[str] = USED_TOPICS, *, w
                     out.info[key_name] = value
             pos = end
             continue
-        elif msg_type in (66, 77, 76, 67, 79, 82) or (msg_type == 83 and raw[pos + 3 : pos + 3 + len(SYNC_MAGIC)] == SYNC_MAGIC):  # 'B' 'M' 'L' 'C' 'O' 'R'
+        elif msg_type in (66, 77, 76, 67, 79, 82) or (
+            msg_type == 83 and raw[pos + 3 : pos + 3 + len(SYNC_MAGIC)] == SYNC_MAGIC
+        ):  # 'B' 'M' 'L' 'C' 'O' 'R'
             pos = end
             continue
         # Not a valid message here: the log is damaged. Resynchronise.
