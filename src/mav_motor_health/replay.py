@@ -65,7 +65,8 @@ CONTEXT_COLUMNS = (
 NO_DATA_SHARE = 0.5
 #: A motor whose telemetry ends this long before the others' is reported as NO_DATA (telemetry lost).
 STALE_S = 5.0
-LOG_SUFFIXES = (".tlog", ".bin", ".ulg", ".csv")
+#: What a folder is searched for (a CSV is replayed only when named: folders hold many other CSVs).
+LOG_SUFFIXES = (".tlog", ".bin", ".ulg")
 OUTPUT_FILES = ("diagnosis.csv", "events.jsonl", "report.html")
 
 
@@ -162,7 +163,7 @@ class Progress:
 
 
 def collect_logs(paths: Iterable[str | Path]) -> list[Path]:
-    """The log files named, with directories searched recursively for ``.tlog .bin .ulg .csv`` files."""
+    """The log files named, with folders searched recursively for ``.tlog .bin .ulg`` files."""
     found: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
@@ -270,14 +271,14 @@ def motor_verdicts(result: TelemetryTable, expected: Sequence[int] = ()) -> list
     return verdicts
 
 
-def _prepare_out_dir(out_dir: Path, force: bool) -> None:
+def _check_out_dir(out_dir: Path, force: bool) -> None:
+    """Refuse an output folder that exists with files in it (unless ``force``) or that is a file."""
     if out_dir.exists() and not out_dir.is_dir():
         raise DataError("exists and is not a folder", path=out_dir)
     if out_dir.is_dir() and any(out_dir.iterdir()) and not force:
         raise DataError(
             "output folder exists already; not overwritten (use --force to replace its files)", path=out_dir
         )
-    out_dir.mkdir(parents=True, exist_ok=True)
 
 
 def write_diagnosis_csv(result: TelemetryTable, path: Path) -> None:
@@ -330,7 +331,7 @@ def replay_log(
 
     started = time.monotonic()
     log, out_dir = Path(log), Path(out_dir)
-    _prepare_out_dir(out_dir, force)
+    _check_out_dir(out_dir, force)
     bar = Progress(log.name, progress)
     bar.update(0, 4, "reading")
     with warnings.catch_warnings(record=True) as caught:
@@ -353,6 +354,7 @@ def replay_log(
     verdicts = motor_verdicts(result, expected)
     events = events_from_diagnosis(result)
     bar.update(2, 4, "writing diagnosis.csv")
+    out_dir.mkdir(parents=True, exist_ok=True)
     write_diagnosis_csv(result, out_dir / "diagnosis.csv")
     with (out_dir / "events.jsonl").open("w", encoding="utf-8") as handle:
         for event in events:
@@ -427,7 +429,8 @@ def replay_many(
     """Replay many logs in worker processes: ``out_dir/<log name>/`` each, plus the fleet summary."""
     paths = [Path(p) for p in logs]
     out_dir = Path(out_dir)
-    _prepare_out_dir(out_dir, force)
+    _check_out_dir(out_dir, force)
+    out_dir.mkdir(parents=True, exist_ok=True)
     folders = [out_dir / name for name in _folder_names(paths)]
     jobs = max(1, min(jobs or (os.cpu_count() or 1), len(paths)))
     results: list[ReplayResult] = []
