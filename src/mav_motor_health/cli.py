@@ -22,6 +22,8 @@ COMMANDS = (
     "fit",
     "predict",
     "diagnose",
+    "compare",
+    "explain",
 )
 
 

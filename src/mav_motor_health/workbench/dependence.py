@@ -6,11 +6,16 @@ candidate variable are first taken *beyond voltage*: their mean in each voltage 
 variable that merely follows the operating point (throttle, bus current) does not score for what the
 model already uses. Significance: the residual is permuted (seeded) and the largest distance correlation
 over all variables is recorded for each permutation; a variable is significant when its score beats the
-99th percentile of that maximum (a family-wise 1 % level over all variables).
+99th percentile of that maximum (a family-wise 1 % level over all variables). Variables that drift
+together (temperature and altitude in one flight) would all look significant, so selection is greedy:
+the strongest significant variable is taken, the residual's dependence on it is removed (a straight line per
+decile bin of that variable), and the rest are tested again on what remains. The reported score is
+the marginal one; ``significant`` says whether the variable was selected.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -63,7 +68,12 @@ def _beyond(values: FloatArray, voltage: FloatArray, bins: int) -> FloatArray:
     out = values.copy()
     for b in np.unique(key):
         sel = key == b
-        out[sel] -= values[sel].mean(axis=0)
+        x = voltage[sel] - voltage[sel].mean()
+        y = values[sel] - values[sel].mean(axis=0)
+        sxx = float(x @ x)
+        # A straight line per bin: what follows the variable smoothly is removed, not just its level.
+        slope = (x @ y) / sxx if sxx > 0 and sel.sum() >= 3 else 0.0 * y[0]
+        out[sel] = y - np.multiply.outer(x, slope)
     return out
 
 
@@ -76,6 +86,7 @@ def rank_variables(
     max_samples: int = 500,
     permutations: int = 99,
     voltage_bins: int = 10,
+    max_selected: int = 3,
 ) -> list[VariableScore]:
     """Score each variable's dependence with ``residual`` (n×d, already scaled) beyond voltage; best first."""
     r = np.asarray(residual, float).reshape(len(np.asarray(voltage_v)), -1)
@@ -102,11 +113,32 @@ def rank_variables(
         a = _centered_distances(_beyond(fill, vv, voltage_bins))
         mats[name] = (a, float((a * a).mean()))
     scores = {name: _dcor(a, b, vaa, vbb) for name, (a, vaa) in mats.items()}
-    maxima = np.empty(permutations)
-    for k in range(permutations):
-        p = rng.permutation(len(idx))
-        bp = b[np.ix_(p, p)]
-        maxima[k] = max(_dcor(a, bp, vaa, vbb) for a, vaa in mats.values())
-    threshold = float(np.quantile(maxima, 0.99))
-    ranked = sorted(scores, key=lambda n: -scores[n])
-    return [VariableScore(n, scores[n], threshold, scores[n] > threshold) for n in ranked]
+    first_threshold = math.nan
+    selected: list[str] = []
+    remaining = _beyond(rv, vv, voltage_bins)
+    while len(selected) < max_selected:
+        candidates = {n: m for n, m in mats.items() if n not in selected}
+        if not candidates:
+            break
+        bb = _centered_distances(remaining)
+        vb = float((bb * bb).mean())
+        current = {n: _dcor(a, bb, vaa, vb) for n, (a, vaa) in candidates.items()}
+        maxima = np.empty(permutations)
+        for k in range(permutations):
+            p = rng.permutation(len(idx))
+            bp = bb[np.ix_(p, p)]
+            maxima[k] = max(_dcor(a, bp, vaa, vb) for a, vaa in candidates.values())
+        threshold = float(np.quantile(maxima, 0.99))
+        if math.isnan(first_threshold):
+            first_threshold = threshold
+        best = max(current, key=lambda n: current[n])
+        if current[best] <= threshold:
+            break
+        selected.append(best)
+        xs = variables[best]
+        xs = np.asarray(xs, float)[idx]
+        remaining = _beyond(remaining, np.where(np.isfinite(xs), xs, np.nanmedian(xs)), 10)
+    ranked = sorted(
+        scores, key=lambda n: (n not in selected, selected.index(n) if n in selected else -scores[n])
+    )
+    return [VariableScore(n, scores[n], first_threshold, n in selected) for n in ranked]

@@ -18,9 +18,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["NoiseFloor", "noise_floor"]
+__all__ = ["NoiseFloor", "noise_floor", "repeat_pairs"]
 
 MIN_PAIRS = 10
 
@@ -43,6 +43,19 @@ class NoiseFloor:
         }
 
 
+def repeat_pairs(
+    time_s: ArrayLike, motor: ArrayLike, voltage_v: ArrayLike, *, tol_v: float = 0.05
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Index pairs (into the given arrays) of consecutive samples of one motor at the same voltage."""
+    t = np.asarray(time_s, float)
+    m = np.asarray(motor)
+    v = np.asarray(voltage_v, float)
+    order = np.lexsort((t, m))
+    a, b = order[:-1], order[1:]
+    same = (m[a] == m[b]) & np.isfinite(v[a]) & np.isfinite(v[b]) & (np.abs(v[b] - v[a]) < tol_v)
+    return a[same], b[same]
+
+
 def noise_floor(
     time_s: ArrayLike,
     motor: ArrayLike,
@@ -58,17 +71,17 @@ def noise_floor(
     v = np.asarray(voltage_v, float)
     w = np.asarray(omega_rad_s, float)
     i = np.asarray(current_a, float)
-    order = np.lexsort((t, m))
-    t, m, v, w, i = t[order], m[order], v[order], w[order], i[order]
     ok = np.isfinite(v) & np.isfinite(w) & np.isfinite(i)
-    same = (m[1:] == m[:-1]) & ok[1:] & ok[:-1] & (np.abs(np.diff(v)) < tol_v)
-    if same.sum() >= MIN_PAIRS:
-        dw, di = np.diff(w)[same], np.diff(i)[same]
+    a, b = repeat_pairs(t, m, v, tol_v=tol_v)
+    keep = ok[a] & ok[b]
+    a, b = a[keep], b[keep]
+    if len(a) >= MIN_PAIRS:
+        dw, di = w[b] - w[a], i[b] - i[a]
         return NoiseFloor(
             float(np.sqrt(np.mean(dw * dw) / 2)),
             float(np.sqrt(np.mean(di * di) / 2)),
             "repeated",
-            int(same.sum()),
+            len(a),
         )
     sw: list[float] = []
     si: list[float] = []

@@ -54,7 +54,7 @@ def hidden_effect_session(
     smooth = max(int(60 * rate_hz), 3)
     context = {
         "throttle": throttle,
-        "bus_voltage_v": 12.5 - 1.3 * t / duration_s + 0.1 * np.sin(t / 37.0),
+        "bus_voltage_v": 12.5 - 1.3 * t / duration_s + 0.05 * np.sin(t / 37.0),
         "motor_temp_c": _drift(rng, n, 15.0, 85.0, smooth),
         "esc_temp_c": _drift(rng, n, 15.0, 70.0, smooth),
         "alt_m": _drift(rng, n, 0.0, 3000.0, smooth),

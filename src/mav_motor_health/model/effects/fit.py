@@ -167,7 +167,7 @@ def _fit_one(
         ctx_all.update(e.data(context))
     ok = np.isfinite(v_all) & np.isfinite(w_all) & np.isfinite(i_all)
     needs_throttle = any("throttle" in e.needs or "throttle" in e.optional for e in effects)
-    for name, arr in ctx_all.items():
+    for arr in ctx_all.values():
         ok &= np.isfinite(arr)
     if needs_throttle and "throttle" in context:
         ctx_all.setdefault("throttle", np.asarray(context["throttle"], float))
