@@ -23,6 +23,8 @@ COMMANDS = (
     "predict",
     "diagnose",
     "replay",
+    "compare",
+    "explain",
 )
 
 
