@@ -19,6 +19,8 @@ from typing import Any
 import paho.mqtt.client as paho
 import pytest
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the helpers next to this file (peer, flightlog)
+
 MOSQUITTO = "/usr/sbin/mosquitto"
 MAVPROXY = str(Path(sys.executable).parent / "mavproxy.py")
 REPO = Path(__file__).resolve().parents[2]

@@ -43,7 +43,7 @@ from ..publish.mqtt import MqttPublisher, utc_now
 from .config import AgentConfig
 from .link import MavlinkLink, Received, mavlink2
 from .monitor import HealthMonitor, StateChange
-from .samples import SampleAssembler
+from .samples import MotorSample, SampleAssembler
 from .vehicle import AutopilotTracker, stream_requests, wanted_params
 
 __all__ = ["Agent", "run_agent"]
@@ -93,6 +93,7 @@ class Agent:
         self._request_streams_at = math.inf
         self._telemetry_sent: dict[int, float] = {}
         self._esc_lost_told = False
+        self._pending: list[MotorSample] = []
 
     # -- lifetime ------------------------------------------------------------------------------------
     async def __aenter__(self) -> Agent:
@@ -159,6 +160,7 @@ class Agent:
         while True:
             item = await self.link.recv()
             if item is None:
+                self.flush()
                 for change in self.monitor.check_silence(self._last_time_s + 2 * self.monitor.stale_s):
                     self._changed(change)
                 self.finished.set()
@@ -176,13 +178,24 @@ class Agent:
             self.tracker.system is None or msg.get_srcSystem() == self.tracker.system
         ):
             self._params_pending.pop(str(msg.param_id).rstrip("\x00"), None)
-        for sample in self.assembler.feed(msg, t):
+        samples = self.assembler.feed(msg, t)
+        if samples:
             self._last_esc_s = t
-            row, change = self.monitor.feed(sample)
-            if self.on_row is not None:
+            self._pending.extend(samples)
+            if t - self._pending[0].time_s >= self.config.batch_s:
+                self.flush()
+
+    def flush(self) -> None:
+        """Diagnose the samples waiting (the core runs per motor on a few samples at a time)."""
+        if not self._pending:
+            return
+        pending, self._pending = self._pending, []
+        rows, changes = self.monitor.feed_many(pending)
+        if self.on_row is not None:
+            for row in rows:
                 self.on_row(row)
-            if change is not None:
-                self._changed(change)
+        for change in changes:
+            self._changed(change)
 
     def _on_vehicle_event(self, event: str, t: float) -> None:
         tr = self.tracker
@@ -350,6 +363,8 @@ class Agent:
         while True:
             await asyncio.sleep(_TICK_S)
             mono = time.monotonic()
+            if self._pending and self.now() - self._pending[0].time_s >= self.config.batch_s:
+                self.flush()
             if not self.tlog:
                 for change in self.monitor.check_silence(self.now()):
                     self._changed(change)

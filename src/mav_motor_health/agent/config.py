@@ -52,6 +52,7 @@ class AgentConfig:
     esc_rate_hz: float = 50.0
     heartbeat_timeout_s: float = 3.0
     stale_s: float = 1.0
+    batch_s: float = 0.1  # samples wait at most this long to be diagnosed together (0: one by one)
     publish: PublishSettings = field(default_factory=PublishSettings)
     mqtt: MqttSettings | None = None
     source: Path | None = None
@@ -87,6 +88,7 @@ def load_agent_config(
     motors = int(agent.number("motors", 6, minimum=1, maximum=12))
     frame = agent.text("frame", "hexa-x")
     stale_s = agent.number("stale_s", 1.0, minimum=0.05, maximum=60, unit="s")
+    batch_s = agent.number("batch_s", 0.1, minimum=0.0, maximum=1.0, unit="s")
     agent.done()
 
     url = connect or link.text("connect", "")
@@ -151,6 +153,7 @@ def load_agent_config(
         esc_rate_hz=esc_rate_hz,
         heartbeat_timeout_s=hb_timeout,
         stale_s=stale_s,
+        batch_s=batch_s,
         publish=publish,
         mqtt=mqtt_settings,
         source=Path(path) if path is not None else None,

@@ -14,6 +14,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from ..diagnosis.pipeline import StreamingDiagnoser
 from ..diagnosis.profile import ThresholdProfile
 from ..diagnosis.states import MotorState
@@ -66,24 +68,53 @@ class HealthMonitor:
 
     def feed(self, sample: MotorSample) -> tuple[dict[str, Any], StateChange | None]:
         """Diagnose one sample; returns its result row and the state change it caused, if any."""
-        status = self.status.get(sample.motor)
-        if status is None:
-            raise KeyError(f"motor {sample.motor} is not one of 1..{len(self.status)}")
-        row = self.diagnoser.update(
-            sample.motor,
-            sample.time_s,
-            sample.voltage_v,
-            sample.omega_rad_s,
-            sample.current_a,
-            None if math.isnan(sample.bus_voltage_v) else sample.bus_voltage_v,
-        )
-        row["bus_voltage_v"] = sample.bus_voltage_v
-        row["throttle"] = sample.throttle
-        self.samples += 1
-        status.row = row
-        status.last_sample_s = sample.time_s
-        announced = MotorState(int(row["announced"]))  # type: ignore[call-overload]
-        return row, self._publish(status, announced, sample.time_s, row)
+        rows, changes = self.feed_many([sample])
+        return rows[0], (changes[0] if changes else None)
+
+    def feed_many(self, samples: list[MotorSample]) -> tuple[list[dict[str, Any]], list[StateChange]]:
+        """Diagnose samples (each motor's in time order) in one core call per motor: same results as one
+        by one (the core carries its state), a fraction of the overhead. Returns rows and changes."""
+        by_motor: dict[int, list[MotorSample]] = {}
+        for sample in samples:
+            if sample.motor not in self.status:
+                raise KeyError(f"motor {sample.motor} is not one of 1..{len(self.status)}")
+            by_motor.setdefault(sample.motor, []).append(sample)
+        rows: list[dict[str, Any]] = []
+        changes: list[StateChange] = []
+        for motor, group in by_motor.items():
+            status = self.status[motor]
+            arrays = {
+                name: np.array([getattr(s, name) for s in group], dtype=float)
+                for name in ("time_s", "voltage_v", "omega_rad_s", "current_a", "bus_voltage_v")
+            }
+            cols = self.diagnoser.update_many(
+                motor,
+                arrays["time_s"],
+                arrays["voltage_v"],
+                arrays["omega_rad_s"],
+                arrays["current_a"],
+                arrays["bus_voltage_v"],
+            )
+            for k, sample in enumerate(group):
+                row: dict[str, Any] = {
+                    "time_s": sample.time_s,
+                    "motor": motor,
+                    "omega_rad_s": sample.omega_rad_s,
+                    "current_a": sample.current_a,
+                    "voltage_v": sample.voltage_v,
+                    "bus_voltage_v": sample.bus_voltage_v,
+                    "throttle": sample.throttle,
+                    **{name: values[k].item() for name, values in cols.items()},
+                }
+                rows.append(row)
+                status.row = row
+                status.last_sample_s = sample.time_s
+                change = self._publish(status, MotorState(int(row["announced"])), sample.time_s, row)
+                if change is not None:
+                    changes.append(change)
+            self.samples += len(group)
+        changes.sort(key=lambda c: c.time_s)
+        return rows, changes
 
     def check_silence(self, now_s: float) -> list[StateChange]:
         """Motors silent for longer than ``stale_s`` become ``NO_DATA``; returns those changes."""
