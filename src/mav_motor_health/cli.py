@@ -25,6 +25,7 @@ COMMANDS = (
     "replay",
     "compare",
     "explain",
+    "agent",
 )
 
 

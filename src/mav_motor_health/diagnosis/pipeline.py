@@ -271,6 +271,29 @@ class StreamingDiagnoser:
             **{k: v[0].item() for k, v in cols.items()},
         }
 
+    def update_many(
+        self,
+        motor: int,
+        time_s: NDArray[np.float64],
+        voltage_v: NDArray[np.float64],
+        omega_rad_s: NDArray[np.float64],
+        current_a: NDArray[np.float64],
+        bus_voltage_v: NDArray[np.float64] | None = None,
+    ) -> dict[str, NDArray]:
+        """Diagnose a few new samples of one motor at once (same results as one by one, less overhead)."""
+        motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
+        cols, self.carries[motor] = diagnose_motor(
+            motor_params,
+            self.profile,
+            np.asarray(time_s, dtype=float),
+            np.asarray(voltage_v, dtype=float),
+            np.asarray(omega_rad_s, dtype=float),
+            np.asarray(current_a, dtype=float),
+            None if bus_voltage_v is None else np.asarray(bus_voltage_v, dtype=float),
+            self.carries.get(motor),
+        )
+        return cols
+
     def announced(self, motor: int) -> MotorState:
         carry = self.carries.get(motor)
         return MotorState(carry.persistence.announced if carry else MotorState.NORMAL)
