@@ -1,0 +1,1 @@
+"""Sinks: what the diagnosis is published to (MQTT, MAVLink, reports, the web display)."""
