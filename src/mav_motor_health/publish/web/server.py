@@ -69,7 +69,7 @@ def state_kinds() -> dict[str, dict[str, Any]]:
 
 def static_text(name: str) -> str:
     """One of the page's files, read from the installed package."""
-    return resources.files(__package__).joinpath("static", name).read_text(encoding="utf-8")
+    return resources.files(__package__).joinpath("static").joinpath(name).read_text(encoding="utf-8")
 
 
 @dataclass(frozen=True)

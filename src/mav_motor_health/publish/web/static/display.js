@@ -35,6 +35,7 @@
       this.dirty = true;
       this.layout = cfg.layouts[cfg.default_frame];
       this.view = MmhHexaView.create($("hexaview"), {layout: this.layout, states: cfg.states});
+      $("chart-window").textContent = String(cfg.chart_window_s);
       this.cards = new Map();
       for (const m of [...this.layout].sort((a, b) => a.motor - b.motor)) {
         this.cards.set(m.motor, this.makeCard(m));
@@ -445,10 +446,16 @@
     line(model, "#78909c", [5, 4]);
     line(measured, "#1565c0", []);
     ctx.setLineDash([]);
-    ctx.fillStyle = "#546e7a";
     ctx.font = "11px system-ui, sans-serif";
-    ctx.fillText(hi.toFixed(hi < 20 ? 1 : 0), 4, 12);
-    ctx.fillText(lo.toFixed(lo < 20 ? 1 : 0), 4, h - 5);
+    const label = (textValue, baseline) => {
+      const width = ctx.measureText(textValue).width;
+      ctx.fillStyle = "rgba(255, 255, 255, 0.85)";
+      ctx.fillRect(2, baseline - 10, width + 4, 13);
+      ctx.fillStyle = "#546e7a";
+      ctx.fillText(textValue, 4, baseline);
+    };
+    label(hi.toFixed(hi < 20 ? 1 : 0), 12);
+    label(lo.toFixed(lo < 20 ? 1 : 0), h - 4);
   }
 
   async function main() {
