@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import os
 import shutil
 import socket
 import subprocess
@@ -71,8 +72,10 @@ def start_mosquitto(
     workdir.mkdir(parents=True, exist_ok=True)
     mqtt_port, ws_port = free_port(), free_port()
     conf = workdir / "mosquitto.conf"
+    # As root mosquitto drops to user "mosquitto", which cannot read files in pytest's private tmp.
+    run_as = "user root\n" if os.geteuid() == 0 else ""
     conf.write_text(
-        "per_listener_settings false\n"
+        run_as + "per_listener_settings false\n"
         f"{extra}"
         f"listener {mqtt_port} 127.0.0.1\n"
         f"listener {ws_port} 127.0.0.1\nprotocol websockets\n"
@@ -335,3 +338,49 @@ def agent_like(publisher: Publisher, prefix: str) -> Callable[..., AgentLike]:
         return AgentLike(pub or publisher, prefix, vehicle, seed)
 
     return make
+
+
+@pytest.fixture
+def mosquitto_factory(tmp_path: Path) -> Iterator[Callable[..., Broker]]:
+    """Factory: a broker of its own with extra global config (auth, ACL), stopped after the test."""
+    procs: list[subprocess.Popen[bytes]] = []
+
+    def make(extra: str) -> Broker:
+        b, proc = start_mosquitto(tmp_path / f"mosquitto{len(procs)}", extra=extra)
+        procs.append(proc)
+        return b
+
+    yield make
+    for proc in procs:
+        stop(proc)
+
+
+@pytest.fixture
+def page_for(browser: Any) -> Iterator[Callable[[], Any]]:
+    """Factory: more pages (a second viewer), closed after the test."""
+    contexts: list[Any] = []
+
+    def make() -> Any:
+        context = browser.new_context(viewport={"width": 1280, "height": 900})
+        contexts.append(context)
+        return context.new_page()
+
+    yield make
+    for c in contexts:
+        c.close()
+
+
+@pytest.fixture
+def display_for() -> Iterator[Callable[..., DisplayServer]]:
+    """Factory: a display server for a given broker and prefix (stopped at the end of the test)."""
+    servers: list[DisplayServer] = []
+
+    def make(broker: Broker, prefix: str, **overrides: Any) -> DisplayServer:
+        cfg = DisplayConfig(broker_ws_url=broker.ws_url, topic_prefix=prefix, **overrides)
+        server = DisplayServer(cfg, port=0).__enter__()
+        servers.append(server)
+        return server
+
+    yield make
+    for s in servers:
+        s.__exit__(None, None, None)

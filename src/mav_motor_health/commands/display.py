@@ -60,6 +60,9 @@ def config_from_args(args: argparse.Namespace) -> DisplayConfig:
 def run(args: argparse.Namespace) -> int:
     server = DisplayServer(config_from_args(args), host=args.bind, port=args.port)
     broker = args.broker_ws or "ws://<this host>:9001"
-    print(f"motor-health display on {server.url} (broker {broker}, topics {args.prefix}/#); Ctrl-C stops")
+    print(
+        f"motor-health display on {server.url} (broker {broker}, topics {args.prefix}/#); Ctrl-C stops",
+        flush=True,
+    )
     server.serve_forever()
     return 0
