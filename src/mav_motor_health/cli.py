@@ -26,6 +26,7 @@ COMMANDS = (
     "compare",
     "explain",
     "agent",
+    "display",
 )
 
 
