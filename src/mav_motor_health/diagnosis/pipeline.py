@@ -244,20 +244,17 @@ class StreamingDiagnoser:
         extra_flags: int = 0,
     ) -> dict[str, object]:
         """Diagnose one new sample of one motor; returns the result row (state codes as ints)."""
-        motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
 
         def one(x: float | None) -> NDArray[np.float64] | None:
             return None if x is None else np.array([x], dtype=float)
 
-        cols, self.carries[motor] = diagnose_motor(
-            motor_params,
-            self.profile,
+        cols = self.update_many(
+            motor,
             np.array([time_s]),
             np.array([voltage_v]),
             np.array([omega_rad_s]),
             np.array([current_a]),
             one(bus_voltage_v),
-            self.carries.get(motor),
             command=one(command),
             sensor_current_a=one(sensor_current_a),
             extra_flags=np.array([extra_flags], dtype=np.int16),
@@ -279,9 +276,17 @@ class StreamingDiagnoser:
         omega_rad_s: NDArray[np.float64],
         current_a: NDArray[np.float64],
         bus_voltage_v: NDArray[np.float64] | None = None,
+        *,
+        command: NDArray[np.float64] | None = None,
+        sensor_current_a: NDArray[np.float64] | None = None,
+        extra_flags: NDArray[np.int16] | None = None,
     ) -> dict[str, NDArray]:
         """Diagnose a few new samples of one motor at once (same results as one by one, less overhead)."""
         motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
+
+        def arr(x: NDArray | None) -> NDArray[np.float64] | None:
+            return None if x is None else np.asarray(x, dtype=float)
+
         cols, self.carries[motor] = diagnose_motor(
             motor_params,
             self.profile,
@@ -289,8 +294,11 @@ class StreamingDiagnoser:
             np.asarray(voltage_v, dtype=float),
             np.asarray(omega_rad_s, dtype=float),
             np.asarray(current_a, dtype=float),
-            None if bus_voltage_v is None else np.asarray(bus_voltage_v, dtype=float),
+            arr(bus_voltage_v),
             self.carries.get(motor),
+            command=arr(command),
+            sensor_current_a=arr(sensor_current_a),
+            extra_flags=extra_flags,
         )
         return cols
 
