@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from mav_motor_health.config import dump_motor_params, load_motor_params, load_profile
+from mav_motor_health.diagnosis.profile import ThresholdProfile
 from mav_motor_health.errors import ConfigError
 
 
@@ -88,3 +89,24 @@ def test_dump_round_trip(tmp_path: Path, paper_motor) -> None:
     )
     path = write(tmp_path, dump_motor_params(with_effects, {"fitted_from": "bench.csv"}))
     assert load_motor_params(path) == with_effects
+
+
+def test_profile_dump_round_trip(tmp_path: Path) -> None:
+    from mav_motor_health.config import dump_profile
+    from mav_motor_health.diagnosis.profile import PersistenceRule
+
+    profile = load_profile("flight")
+    tuned = ThresholdProfile(
+        name="tuned",
+        description="tuned on x",
+        speed_band_rad_s=31.5,
+        current_band_a=((5.0, 0.4), (9.0, 1.1), (16.0, 2.0)),
+        stall_split_a=5.5,
+        stall_split_per_v=0.3,
+        stall_split_ref_v=15.0,
+        steady=profile.steady,
+        persistence=PersistenceRule(0.2, (("F4.1", 0.35), ("F2.1", 0.05)), 0.6),
+        plausibility=profile.plausibility,
+    )
+    path = write(tmp_path, dump_profile(tuned, {"tuned_on": "3 flights"}))
+    assert load_profile(path) == tuned

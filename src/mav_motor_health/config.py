@@ -28,6 +28,7 @@ __all__ = [
     "DEFAULT_PROFILE",
     "PARAMS_DIR",
     "dump_motor_params",
+    "dump_profile",
     "load_motor_params",
     "load_profile",
     "read_toml",
@@ -271,3 +272,37 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
     pers.done()
     plaus.done()
     return profile
+
+
+def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = None) -> str:
+    """TOML text for a profile that :func:`load_profile` reads back exactly."""
+    band = ", ".join(f"[{v!r}, {w!r}]" for v, w in profile.current_band_a)
+    lines = [
+        "[profile]",
+        f"name = {_toml_string(profile.name)}",
+        f"description = {_toml_string(profile.description)}",
+        f"speed_band_rad_s = {profile.speed_band_rad_s!r}",
+        f"current_band_a = [{band}]",
+        f"stop_speed_rad_s = {profile.stop_speed_rad_s!r}",
+        f"stall_split_a = {profile.stall_split_a!r}",
+        f"stall_split_per_v = {profile.stall_split_per_v!r}",
+        f"stall_split_ref_v = {profile.stall_split_ref_v!r}",
+        "",
+        "[steady]",
+        f"kind = {_toml_string(profile.steady.kind)}",
+        f"step_v = {profile.steady.step_v!r}",
+        f"settle_s = {profile.steady.settle_s!r}",
+        f"lag_fraction = {profile.steady.lag_fraction!r}",
+        "",
+        "[persistence]",
+        f"default_announce_s = {profile.persistence.default_announce_s!r}",
+        f"clear_s = {profile.persistence.clear_s!r}",
+    ]
+    if profile.persistence.announce_s:
+        lines += ["", "[persistence.announce_s]"]
+        lines += [f"{_toml_string(label)} = {value!r}" for label, value in profile.persistence.announce_s]
+    lines += ["", "[plausibility]"]
+    lines += [f"{name} = {value!r}" for name, value in profile.plausibility.__dict__.items()]
+    if source:
+        lines += ["", "[source]"] + [f"{k} = {_toml_string(str(v))}" for k, v in source.items()]
+    return "\n".join(lines) + "\n"
