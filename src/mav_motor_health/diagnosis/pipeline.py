@@ -86,7 +86,7 @@ def diagnose_motor(
     v = np.asarray(voltage_v, dtype=float)
     model = steady_state(params, v)
     rule = profile.steady
-    if rule.kind == "dynamic":
+    if rule.kind == "dynamic" and params.J_kg_m2 is not None:
         tau = time_constant_s(params, model.omega_rad_s)
         omega_pred, response_carry = first_order_response(t, model.omega_rad_s, tau, carry.response)
         turning = omega_pred > 0
@@ -118,9 +118,12 @@ def diagnose_motor(
         voltage_v=v,
         bus_voltage_v=bus_voltage_v,
         current_trusted=current_trusted,
+        omega_expected_rad_s=np.minimum(omega_pred, model.omega_rad_s),
     )
     state[(flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT  # never a motor fault from a bad sensor
     eligible = (steady | np.isin(state, _TRANSIENT_OK)) & (state != MotorState.NO_DATA)
+    if command is not None and profile.min_command > 0:
+        eligible &= ~(np.asarray(command, dtype=float) < profile.min_command)  # idle and spin-up: not judged
     announced, persistence_carry = announce(
         profile.persistence.hold_s(), t, state, eligible, carry.persistence
     )

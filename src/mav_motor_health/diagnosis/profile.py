@@ -30,7 +30,7 @@ class SteadyRule:
     is a step, and samples are not steady for ``settle_s`` after it; measurements are compared with the
     steady-state model.
 
-    ``kind = "dynamic"`` (flight): the steady-state prediction is passed through the motor's own
+    ``kind = "dynamic"`` (flight; motors with a known inertia J, else the step rule applies): the steady-state prediction is passed through the motor's own
     first-order response (time constant from J and the model, :mod:`..model.dynamics`), measurements are
     compared with that, and a sample counts as quasi-steady where the response has caught up with the
     steady state to within ``lag_fraction`` of the speed and current bands.
@@ -100,6 +100,8 @@ class ThresholdProfile:
     stall_split_a: float = 6.0
     stall_split_per_v: float = 0.0
     stall_split_ref_v: float = 11.1
+    speed_only_band_frac: float = 0.15
+    min_command: float = 0.0
     steady: SteadyRule = field(default_factory=SteadyRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)

@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .params import MotorParams
 
-__all__ = ["ResponseCarry", "first_order_response", "time_constant_s"]
+__all__ = ["ResponseCarry", "estimate_inertia", "first_order_response", "time_constant_s"]
 
 FloatArray = NDArray[np.float64]
 
@@ -101,3 +101,40 @@ def first_order_response(
         start = end
     last_input = x[-1] if np.isfinite(x[-1]) else carry.input
     return out, ResponseCarry(time_s=float(t[-1]), input=float(last_input), output=float(out[-1]))
+
+
+def estimate_inertia(
+    params: MotorParams,
+    runs: list[tuple[ArrayLike, ArrayLike, ArrayLike]],
+    candidates_kg_m2: ArrayLike | None = None,
+) -> float | None:
+    """The rotor + propeller inertia that best explains how speed follows a moving input.
+
+    ``runs`` are (time_s, voltage_v, omega_rad_s) series (one per motor or flight). Each candidate J,
+    and "no lag" (None), is scored by the mean squared error between the measured speed and the
+    steady-state speed passed through the first-order response (squared, so that the transients, where
+    J matters, weigh); the best is returned. A grid search
+    in log space: the error is not smooth in J where telemetry is quantised.
+    """
+    from .equations import steady_state
+
+    grid = (
+        np.geomspace(1e-7, 1e-3, 25)
+        if candidates_kg_m2 is None
+        else np.asarray(candidates_kg_m2, dtype=float)
+    )
+    prepared = []
+    for t, v, w in runs:
+        t, v, w = (np.asarray(x, dtype=float) for x in (t, v, w))
+        prepared.append((t, steady_state(params, v).omega_rad_s, w))
+    best: tuple[float, float | None] = (np.inf, None)
+    for inertia in [None, *grid.tolist()]:
+        trial = params.replace(J_kg_m2=inertia)
+        errors = []
+        for t, w_ss, w in prepared:
+            pred, _ = first_order_response(t, w_ss, time_constant_s(trial, w_ss))
+            errors.append((pred - w) ** 2)
+        error = float(np.nanmean(np.concatenate(errors)))
+        if error < best[0]:
+            best = (error, inertia)
+    return best[1]
