@@ -122,7 +122,8 @@ def _dialect() -> tuple[dict[int, _MessageSpec], dict[str, _MessageSpec]]:
 class TlogMessages:
     """Decoded messages of a tlog: per message name, a structured array of its payloads.
 
-    ``time_us``/``sysid``/``compid`` hold each message's record time and sender; ``counts`` the number of
+    ``time_us``/``sysid``/``compid`` hold each message's record time and sender, ``offsets`` the byte offset
+    of its record (timestamp included); ``counts`` the number of
     frames per message name in the whole log; ``damage`` where the log was broken.
     """
 
@@ -130,6 +131,7 @@ class TlogMessages:
     time_us: dict[str, NDArray[np.uint64]] = field(default_factory=dict)
     sysid: dict[str, NDArray[np.uint8]] = field(default_factory=dict)
     compid: dict[str, NDArray[np.uint8]] = field(default_factory=dict)
+    offsets: dict[str, NDArray[np.int64]] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
     first_time_us: int = 0
     damage: Damage = field(default_factory=Damage)
@@ -230,6 +232,7 @@ def read_messages(
         out.time_us[name] = stamps[sel]
         out.sysid[name] = data[cand[rows] + np.where(v2[rows], 5, 3)]
         out.compid[name] = data[cand[rows] + np.where(v2[rows], 6, 4)]
+        out.offsets[name] = cand[rows] - 8
     if warn:
         damage.warn(path, "frames")
     return out

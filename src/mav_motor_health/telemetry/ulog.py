@@ -69,9 +69,11 @@ _KNOWN_TYPES = set(b"BFIMPQADLCSOR")
 
 @dataclass
 class ULog:
-    """Decoded ULog: per topic name and instance (multi id), a structured array of its data messages."""
+    """Decoded ULog: per topic name and instance (multi id), a structured array of its data messages and
+    the byte offset of each message."""
 
     topics: dict[tuple[str, int], NDArray[Any]] = field(default_factory=dict)
+    offsets: dict[tuple[str, int], NDArray[np.int64]] = field(default_factory=dict)
     params: dict[str, float] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
     start_timestamp_us: int = 0
@@ -251,6 +253,7 @@ def read_ulog_topics(path: str | Path, topics: Iterable[str] = USED_TOPICS, *, w
         dtype = dtypes(name)
         rows = gather_rows(data, np.asarray(offsets, dtype=np.int64), dtype.itemsize)
         out.topics[(name, multi_id)] = rows.view(dtype).ravel()
+        out.offsets[(name, multi_id)] = np.asarray(offsets, dtype=np.int64) - 5
     if warn:
         damage.warn(path, "messages")
     return out
