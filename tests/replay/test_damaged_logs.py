@@ -66,7 +66,13 @@ def ulog_span(data: bytes, offset: int) -> int:
 
 
 BIN_TYPES = ("FMT", "PARM", "MSG", "ESC", "RCOU", "BAT", "BARO", "CTUN", "ATT", "IMU", "GPS")
-ULOG_TOPICS = ("esc_status", "actuator_outputs", "battery_status", "vehicle_local_position", "vehicle_air_data")
+ULOG_TOPICS = (
+    "esc_status",
+    "actuator_outputs",
+    "battery_status",
+    "vehicle_local_position",
+    "vehicle_air_data",
+)
 
 
 @dataclass(frozen=True)
@@ -83,7 +89,9 @@ def _cut_at_record(records: Records, limit: int) -> int:
 
 
 @pytest.fixture(scope="module")
-def samples(sitl_tlog: Path, sitl_bin: Path, px4_esc_ulg: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Sample]:
+def samples(
+    sitl_tlog: Path, sitl_bin: Path, px4_esc_ulg: Path, tmp_path_factory: pytest.TempPathFactory
+) -> dict[str, Sample]:
     folder = tmp_path_factory.mktemp("slices")
     out: dict[str, Sample] = {}
 
