@@ -282,7 +282,10 @@ def gather_rows(
     size = len(data)
     offsets = np.asarray(offsets, dtype=np.int64)
     if size >= width:
-        windows = np.lib.stride_tricks.sliding_window_view(np.asarray(data), width)
+        flat = np.asarray(data)
+        windows = np.lib.stride_tricks.as_strided(
+            flat, shape=(size - width + 1, width), strides=(flat.strides[0], flat.strides[0]), writeable=False
+        )
         inside = offsets + width <= size
         if inside.all():
             rows = windows[offsets]
@@ -318,18 +321,19 @@ _CRC_TABLE = _crc_table()
 def crc_x25_rows(rows: NDArray[np.uint8], lengths: NDArray[np.int64], extra: int) -> NDArray[np.uint16]:
     """X.25 (CRC-16/MCRF4XX) of each row's first ``lengths`` bytes followed by ``extra``: MAVLink's CRC.
 
-    Vectorised over rows: one table look-up per column, for all frames at once.
+    Vectorised over rows: rows of equal length are processed together, one table look-up per byte
+    column for all of them at once.
     """
-    n, width = rows.shape
-    crc = np.full(n, 0xFFFF, dtype=np.uint16)
+    out = np.zeros(len(rows), dtype=np.uint16)
     table = _CRC_TABLE
-    for col in range(width):
-        active = lengths > col
-        if not active.any():
-            break
-        step = (crc >> 8) ^ table[(crc ^ rows[:, col]) & 0xFF]
-        crc = np.where(active, step, crc).astype(np.uint16)
-    return ((crc >> 8) ^ table[(crc ^ np.uint16(extra)) & 0xFF]).astype(np.uint16)
+    for length in np.unique(lengths).tolist():
+        sel = np.flatnonzero(lengths == length)
+        block = rows[sel, :length].astype(np.uint16)
+        crc = np.full(len(sel), 0xFFFF, dtype=np.uint16)
+        for col in range(length):
+            crc = (crc >> 8) ^ table[(crc ^ block[:, col]) & 0xFF]
+        out[sel] = (crc >> 8) ^ table[(crc ^ np.uint16(extra)) & 0xFF]
+    return out
 
 
 def hold_previous(
