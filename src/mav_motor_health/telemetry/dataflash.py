@@ -88,11 +88,13 @@ class RecordFormat:
 
 @dataclass
 class DataflashLog:
-    """Decoded records of a DataFlash log: per type name, a dict of column arrays (scaled as DFReader)."""
+    """Decoded records of a DataFlash log: per type name, a dict of column arrays (scaled as DFReader),
+    and the byte offset of every record."""
 
     records: dict[str, dict[str, NDArray[Any]]] = field(default_factory=dict)
     formats: dict[str, RecordFormat] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
+    offsets: dict[str, NDArray[np.int64]] = field(default_factory=dict)
     damage: Damage = field(default_factory=Damage)
 
     def __contains__(self, name: object) -> bool:
@@ -169,12 +171,16 @@ def read_records(path: str | Path, names: Iterable[str] = USED_RECORDS, *, warn:
         )
     next_start = heads + rec_len
 
-    def accept(k: int) -> bool:
-        nxt = int(next_start[k])
-        if nxt == size:
-            return True
-        j = int(np.searchsorted(heads, nxt))
-        return j < len(heads) and heads[j] == nxt
+    def accept(k: int, links: int = 2) -> bool:
+        """A resynchronisation point: a header whose next ``links`` successors are headers too."""
+        for _ in range(links):
+            nxt = int(next_start[k])
+            if nxt >= size - 2:
+                return nxt <= size
+            k = int(np.searchsorted(heads, nxt))
+            if k >= len(heads) or heads[k] != nxt:
+                return False
+        return True
 
     first = 0
     while first < len(heads) and heads[first] != 0 and not accept(first):
@@ -200,8 +206,10 @@ def read_records(path: str | Path, names: Iterable[str] = USED_RECORDS, *, warn:
         for col, char in zip(dtype.names or (), fmt.format):
             scale = FORMAT_CHARS[char][1]
             values = recs[col]
-            columns[col] = values * scale if scale is not None else values.copy()
+            # Divide by 1/scale as DFReader does (more accurate than multiplying by 0.01 or 1e-7).
+            columns[col] = values / (1.0 / scale) if scale is not None else values.copy()
         out.records[name] = columns
+        out.offsets[name] = at
     if warn:
         out.damage.warn(path, "records")
     del data, mapped

@@ -122,7 +122,8 @@ def _dialect() -> tuple[dict[int, _MessageSpec], dict[str, _MessageSpec]]:
 class TlogMessages:
     """Decoded messages of a tlog: per message name, a structured array of its payloads.
 
-    ``time_us``/``sysid``/``compid`` hold each message's record time and sender; ``counts`` the number of
+    ``time_us``/``sysid``/``compid`` hold each message's record time and sender, ``offsets`` the byte offset
+    of its record (timestamp included); ``counts`` the number of
     frames per message name in the whole log; ``damage`` where the log was broken.
     """
 
@@ -130,6 +131,7 @@ class TlogMessages:
     time_us: dict[str, NDArray[np.uint64]] = field(default_factory=dict)
     sysid: dict[str, NDArray[np.uint8]] = field(default_factory=dict)
     compid: dict[str, NDArray[np.uint8]] = field(default_factory=dict)
+    offsets: dict[str, NDArray[np.int64]] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
     first_time_us: int = 0
     damage: Damage = field(default_factory=Damage)
@@ -157,6 +159,15 @@ def read_messages(
     cand = cand[cand + 10 <= size]
     if len(cand) == 0:
         raise LogFormatError("no MAVLink frame found: not a .tlog file", path=path, offset=0)
+    # Sync bytes inside payloads are weeded out before the walk: a real MAVLink 2 frame has no
+    # incompatibility flag but signing, and a real record's timestamp shares its top 16 bits (2**48 µs,
+    # nine years) with the log's other records.
+    top = (data[cand - 8].astype(np.int64) << 8) | data[cand - 7]
+    common = int(np.bincount(top).argmax())
+    plausible = ((top == common) | (top == common + 1)) & (
+        (data[cand] == 0xFE) | ((data[cand + 2] & 0xFE) == 0)
+    )
+    cand = cand[plausible]
     v2 = data[cand] == 0xFD
     plen = data[cand + 1].astype(np.int64)
     signed = v2 & ((data[cand + 2] & 1) != 0)
@@ -199,11 +210,33 @@ def read_messages(
         j = int(np.searchsorted(cand, next_start[k]))
         return next_start[k] == size + 8 or (j < len(cand) and cand[j] == next_start[k])
 
-    damage = out.damage
-    first = 0
-    while first < len(cand) and (cand[first] != 8 and not accept(first)):
-        first += 1
-    chain = follow_chain(cand, next_start, size + 8, accept, damage, first=first)
+    # Walk the chain; frames of the decoded messages whose CRC fails are taken out of the candidates
+    # and the chain is walked again, so a damaged length cannot lead the walk astray.
+    wanted_ids = np.array([by_name[n].msgid for n in names if n in by_name], dtype=np.int64)
+    active = np.ones(len(cand), dtype=bool)
+    bad_total, bad_offsets = 0, []
+    for _attempt in range(10):
+        live = np.flatnonzero(active)
+        damage = Damage()
+
+        def accept_live(k: int, live: NDArray[np.int64] = live) -> bool:
+            return accept(int(live[k]))
+
+        first = 0
+        while first < len(live) and cand[live[first]] != 8 and not accept_live(first):
+            first += 1
+        chain = live[follow_chain(cand[live], next_start[live], size + 8, accept_live, damage, first=first)]
+        used = np.flatnonzero(np.isin(msgid[chain], wanted_ids))
+        bad = used[~frame_ok(chain[used])]
+        if len(bad) == 0:
+            break
+        active[chain[bad]] = False
+        bad_total += len(bad)
+        bad_offsets += (cand[chain[bad]] - 8).tolist()
+    damage.bad_records += bad_total
+    if bad_offsets:
+        damage.offsets = sorted(set(damage.offsets) | set(bad_offsets))
+    out.damage = damage
     if len(chain) == 0:
         raise LogFormatError("no valid MAVLink frame found: not a .tlog file", path=path, offset=0)
     stamps = gather_rows(data, cand[chain] - 8, 8).view(">u8").ravel()
@@ -219,17 +252,12 @@ def read_messages(
             continue
         sel = np.flatnonzero(ids == spec.msgid)
         rows = chain[sel]
-        good = frame_ok(rows)
-        if not good.all():
-            damage.bad_records += int((~good).sum())
-            damage.offsets.extend(int(o) - 8 for o in cand[rows[~good]][:5])
-            rows, sel = rows[good], sel[good]
-            out.counts[name] = len(rows)
         payload = gather_rows(data, cand[rows] + header[rows], spec.dtype.itemsize, plen[rows])
         out.messages[name] = payload.view(spec.dtype).ravel()
         out.time_us[name] = stamps[sel]
         out.sysid[name] = data[cand[rows] + np.where(v2[rows], 5, 3)]
         out.compid[name] = data[cand[rows] + np.where(v2[rows], 6, 4)]
+        out.offsets[name] = cand[rows] - 8
     if warn:
         damage.warn(path, "frames")
     return out
