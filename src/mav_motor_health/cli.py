@@ -27,6 +27,9 @@ COMMANDS = (
     "explain",
     "agent",
     "display",
+    "simulate",
+    "score",
+    "sim",
 )
 
 

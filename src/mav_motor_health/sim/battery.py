@@ -53,4 +53,4 @@ class Battery:
 
     @property
     def remaining_pct(self) -> int:
-        return int(round(100 * min(max(self.soc, 0.0), 1.0)))
+        return round(100 * min(max(self.soc, 0.0), 1.0))

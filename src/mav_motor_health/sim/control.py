@@ -68,6 +68,8 @@ class FlightController:
         self.saturated = np.zeros(frame.n_motors, dtype=bool)
         self.duty = np.zeros(frame.n_motors)
         self.att_sp = [0.0, 0.0, 0.0]
+        self.gyro_noise_rad_s = 0.0
+        self.rng: np.random.Generator | None = None
         self._max_thrust_at_v = -1.0
         self._max_thrust_n = 0.0
 
@@ -125,12 +127,18 @@ class FlightController:
         self.att_sp = [roll_sp, pitch_sp, self.yaw_sp]
         rate_sp = [g.att_p * (roll_sp - phi), g.att_p * (pitch_sp - theta), g.yaw_p * yaw_err]
         torques = [0.0, 0.0, 0.0]
+        rates = list(body.rates)
+        if self.gyro_noise_rad_s > 0 and self.rng is not None:
+            noise = self.rng.standard_normal(3) * self.gyro_noise_rad_s
+            rates = [rates[k] + float(noise[k]) for k in range(3)]
         for k in range(3):
-            err = rate_sp[k] - body.rates[k]
+            err = rate_sp[k] - rates[k]
             kp, ki = (g.yaw_rate_p, g.yaw_rate_i) if k == 2 else (g.rate_p, g.rate_i)
             # The rate integrators keep integrating when a motor saturates: that is how the others
             # take over the load of a failed motor.
             self._rate_i[k] = max(-25.0, min(25.0, self._rate_i[k] + ki * err * dt))
+            # The D term works on the measured rate through a filter (ArduPilot: ~20 Hz): the noise is
+            # left out of it here.
             d_term = 0.0 if k == 2 else -g.rate_d * (body.rates[k] - self._last_rates[k]) / dt
             torques[k] = f.inertia_kg_m2[k] * (kp * err + self._rate_i[k] + d_term)
         self._last_rates = list(body.rates)

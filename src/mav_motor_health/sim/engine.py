@@ -126,8 +126,9 @@ class Simulation:
             )
             self.duty = np.full(6, v_hover / self.battery.voltage_v)
             self.battery.step(float(6 * self.duty[0] * current_from_speed(self.params, hover_w)), 0.0)
-            wind_sd, torque_sd = fl.turbulence_levels
-            self._wind_sd, self._torque_sd = wind_sd, torque_sd
+            self._wind_sd, self._torque_sd, gyro_sd = fl.turbulence_levels
+            self.ctrl.gyro_noise_rad_s = gyro_sd
+            self.ctrl.rng = self.rng
             self._wind = [0.0, 0.0, 0.0]
             self._torque = [0.0, 0.0, 0.0]
             self._segment_index = -1
@@ -222,10 +223,9 @@ class Simulation:
     def snapshot(self) -> VehicleSnapshot:
         b = self.body
         pwm = tuple(int(x) for x in np.round(pwm_from_duty(self.duty)))
-        if b is None:
-            att, pos, vel, climb = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0
-        else:
-            att, pos, vel, climb = tuple(b.att), tuple(b.pos), tuple(b.vel), b.climb_m_s
+        zero = [0.0, 0.0, 0.0]
+        att, pos, vel = (zero, zero, zero) if b is None else (b.att, b.pos, b.vel)
+        climb = 0.0 if b is None else b.climb_m_s
         lat = HOME_LAT_DEG + math.degrees(pos[0] / EARTH_RADIUS_M)
         lon = HOME_LON_DEG + math.degrees(pos[1] / (EARTH_RADIUS_M * math.cos(math.radians(HOME_LAT_DEG))))
         return VehicleSnapshot(
@@ -244,7 +244,7 @@ class Simulation:
             alt_m=-pos[2],
             vel_ned_m_s=(vel[0], vel[1], vel[2]),
             climb_m_s=climb,
-            throttle_pct=int(round(100 * float(np.mean(self.duty)))),
+            throttle_pct=round(100 * float(np.mean(self.duty))),
         )
 
     def ardupilot_params(self) -> dict[str, float]:
@@ -279,8 +279,8 @@ def run_scenario(scenario: Scenario, *, collect_esc: bool = True) -> SimRecord:
     """Simulate a whole scenario offline."""
     sim = Simulation(scenario)
     record = SimRecord(scenario=scenario, params=sim.ardupilot_params())
-    steps = int(round(scenario.duration_s / scenario.dt_s))
-    log_every = max(1, int(round(1.0 / (scenario.log_hz * scenario.dt_s))))
+    steps = round(scenario.duration_s / scenario.dt_s)
+    log_every = max(1, round(1.0 / (scenario.log_hz * scenario.dt_s)))
     record.vehicle.append(sim.snapshot())
     esc = record.esc
     for k in range(1, steps + 1):

@@ -59,11 +59,12 @@ from .sensors import SensorSpec
 
 __all__ = ["TURBULENCE", "FlightSpec", "Scenario", "Segment", "load_scenario", "scenario_from_dict"]
 
-#: turbulence presets: (wind standard deviation [m/s], torque disturbance standard deviation [N·m])
-TURBULENCE: dict[str, tuple[float, float]] = {
-    "calm": (0.3, 0.004),
-    "moderate": (1.5, 0.02),
-    "gusty": (3.5, 0.06),
+#: turbulence presets: wind standard deviation [m/s], torque disturbance standard deviation [N·m],
+#: gyro noise the rate controller sees [rad/s] (vibration grows with rough air and hard manoeuvring)
+TURBULENCE: dict[str, tuple[float, float, float]] = {
+    "calm": (0.3, 0.004, 0.03),
+    "moderate": (1.5, 0.02, 0.15),
+    "gusty": (3.5, 0.06, 0.5),
 }
 SEGMENT_KINDS = ("hover", "climb", "descend", "translate")
 
@@ -87,7 +88,7 @@ class FlightSpec:
     segments: tuple[Segment, ...] = ()
 
     @property
-    def turbulence_levels(self) -> tuple[float, float]:
+    def turbulence_levels(self) -> tuple[float, float, float]:
         return TURBULENCE[self.turbulence]
 
 
