@@ -6,6 +6,7 @@ import argparse
 import json
 
 from ..config import dump_motor_params
+from ..errors import FitError
 from ..model.estimation import DEFAULT_BIN_WIDTH_V, FitResult, estimate
 from ..telemetry.table import TelemetryTable
 from ._common import read_telemetry, write_new_file
@@ -63,15 +64,12 @@ def fit_table(
         import numpy as np
 
         table = table.select(np.isin(table["motor"], motors))
-    return estimate(
-        table.voltage_v(),
-        table["current_a"],
-        table["omega_rad_s"],
-        k=k,
-        fit_k=fit_k,
-        bin_width_v=bin_width_v,
-        name=name,
-    )
+    arrays = (table.voltage_v(), table["current_a"], table["omega_rad_s"])
+    try:
+        return estimate(*arrays, k=k, fit_k=fit_k, bin_width_v=bin_width_v, name=name)
+    except FitError:
+        # Bench files hold one sample per throttle step: each sample is its own operating point.
+        return estimate(*arrays, k=k, fit_k=fit_k, bin_width_v=bin_width_v, name=name, min_samples=1)
 
 
 def run(args: argparse.Namespace) -> int:

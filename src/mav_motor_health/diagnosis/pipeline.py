@@ -7,6 +7,7 @@ the live agent calls it with each new sample and the carry from the previous cal
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -14,6 +15,7 @@ from numpy.typing import NDArray
 
 from ..model.equations import steady_state
 from ..model.params import MotorParams
+from ..model.predict import predict_steady
 from ..telemetry.table import TelemetryTable
 from .persistence import PersistenceCarry, announce
 from .profile import ThresholdProfile
@@ -55,10 +57,15 @@ def diagnose_motor(
     current_a: NDArray[np.float64],
     bus_voltage_v: NDArray[np.float64] | None = None,
     carry: MotorCarry | None = None,
+    context: Mapping[str, NDArray[np.float64]] | None = None,
 ) -> tuple[dict[str, NDArray], MotorCarry]:
-    """Diagnose one motor's samples (increasing time); returns result columns and the new carry."""
+    """Diagnose one motor's samples (increasing time); returns result columns and the new carry.
+
+    ``context`` holds the samples' other columns (temperatures, throttle, altitude...), which a model
+    with fitted effects (``params.effects``) reads; the base model ignores it.
+    """
     carry = carry or MotorCarry()
-    model = steady_state(params, voltage_v)
+    model = predict_steady(params, voltage_v, context) if params.effects else steady_state(params, voltage_v)
     state = classify(
         profile,
         omega_rad_s=omega_rad_s,
@@ -105,6 +112,13 @@ def diagnose(
     for motor in ordered.motors():
         sel = np.flatnonzero(motors == motor)
         motor_params = params[motor] if isinstance(params, dict) else params
+        context = None
+        if motor_params.effects:
+            context = {
+                name: np.asarray(ordered[name][sel], dtype=float)
+                for name in ordered.names
+                if ordered[name].dtype.kind in "biuf"
+            }
         cols, _ = diagnose_motor(
             motor_params,
             profile,
@@ -113,6 +127,7 @@ def diagnose(
             ordered["omega_rad_s"][sel],
             ordered["current_a"][sel],
             None if bus is None else bus[sel],
+            context=context,
         )
         for name, values in cols.items():
             out[name][sel] = values
@@ -148,8 +163,12 @@ class StreamingDiagnoser:
         omega_rad_s: float,
         current_a: float,
         bus_voltage_v: float | None = None,
+        context: Mapping[str, float] | None = None,
     ) -> dict[str, object]:
-        """Diagnose one new sample of one motor; returns the result row (state codes as ints)."""
+        """Diagnose one new sample of one motor; returns the result row (state codes as ints).
+
+        ``context`` gives the sample's other variables for a model with effects.
+        """
         motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
         t = np.array([time_s])
         cols, self.carries[motor] = diagnose_motor(
@@ -161,6 +180,7 @@ class StreamingDiagnoser:
             np.array([current_a]),
             None if bus_voltage_v is None else np.array([bus_voltage_v]),
             self.carries.get(motor),
+            None if context is None else {k: np.array([v], dtype=float) for k, v in context.items()},
         )
         return {
             "time_s": time_s,

@@ -12,14 +12,22 @@ __all__ = ["READERS", "read"]
 
 
 def _read_csv(path: Path) -> TelemetryTable:
+    from .bench import bench_format, read_bench
     from .csv import read_csv
 
-    return read_csv(path)
+    return read_bench(path) if bench_format(path) else read_csv(path)
+
+
+def _read_bench(path: Path) -> TelemetryTable:
+    from .bench import read_bench
+
+    return read_bench(path)
 
 
 #: Reader per lower-case file extension. Log readers register here as they are added.
 READERS: dict[str, Callable[[Path], TelemetryTable]] = {
     ".csv": _read_csv,
+    ".txt": _read_bench,
 }
 
 
