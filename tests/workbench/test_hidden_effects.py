@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mav_motor_health.cli import main
-from mav_motor_health.model.effects import BUILTIN_EFFECTS, available_effects, load_effects_file
+from mav_motor_health.model.effects import BUILTIN_EFFECTS, load_effects_file
 from mav_motor_health.model.effects.fit import fit_effects
 from mav_motor_health.model.params import MotorParams
 from mav_motor_health.telemetry.csv import write_csv
@@ -126,11 +126,7 @@ def test_unknown_effect_names_the_variable_and_a_user_effect_repairs_it(
     assert fit.rmse_current_a <= WITHIN_NOISE * nf.current_a
     assert dict(fit.params.effects[0][1])["gain_a_per_k"] == pytest.approx(0.015, rel=0.1)
 
-    # Ranked exactly like the built-ins: explain with the user's file puts it first.
-    ranked = explain(data, effects=available_effects([effect_file]), seed=0)
-    assert ranked.best is not None and ranked.best.name == "hall_drift"
-
-    # And from the command line, as JSON.
+    # Ranked exactly like the built-ins: explain with the user's file puts it first (command line, JSON).
     csv = tmp_path / "session.csv"
     write_csv(unknown_effect_table, csv)
     assert main(["explain", str(csv), "--effects-file", str(effect_file), "--json"]) == 0

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 from ..config import dump_motor_params
-from ..errors import FitError
+from ..errors import DataError, FitError
 from ..model.estimation import DEFAULT_BIN_WIDTH_V, FitResult, estimate
 from ..telemetry.table import TelemetryTable
 from ._common import read_telemetry, write_new_file
@@ -73,6 +74,9 @@ def fit_table(
 
 
 def run(args: argparse.Namespace) -> int:
+    for target in (args.out, args.plot):
+        if target and Path(target).exists() and not args.force:  # fail before the work, not after
+            raise DataError("exists already; not overwritten (use --force to replace it)", path=target)
     table = read_telemetry(args.data)
     result = fit_table(
         table,
