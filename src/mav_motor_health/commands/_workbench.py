@@ -46,7 +46,7 @@ def effects_from_args(args: argparse.Namespace) -> dict[str, Effect]:
 
 def read_joined(paths: Sequence[str]) -> TelemetryTable:
     """Read every file and join them; later files' times are shifted to follow the earlier ones."""
-    tables = []
+    tables: list[TelemetryTable] = []
     offset = 0.0
     for path in paths:
         table = read_telemetry(path)

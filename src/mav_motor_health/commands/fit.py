@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 from ..config import dump_motor_params
+from ..errors import DataError, FitError
 from ..model.estimation import DEFAULT_BIN_WIDTH_V, FitResult, estimate
 from ..telemetry.table import TelemetryTable
 from ._common import read_telemetry, write_new_file
@@ -63,18 +65,18 @@ def fit_table(
         import numpy as np
 
         table = table.select(np.isin(table["motor"], motors))
-    return estimate(
-        table.voltage_v(),
-        table["current_a"],
-        table["omega_rad_s"],
-        k=k,
-        fit_k=fit_k,
-        bin_width_v=bin_width_v,
-        name=name,
-    )
+    arrays = (table.voltage_v(), table["current_a"], table["omega_rad_s"])
+    try:
+        return estimate(*arrays, k=k, fit_k=fit_k, bin_width_v=bin_width_v, name=name)
+    except FitError:
+        # Bench files hold one sample per throttle step: each sample is its own operating point.
+        return estimate(*arrays, k=k, fit_k=fit_k, bin_width_v=bin_width_v, name=name, min_samples=1)
 
 
 def run(args: argparse.Namespace) -> int:
+    for target in (args.out, args.plot):
+        if target and Path(target).exists() and not args.force:  # fail before the work, not after
+            raise DataError("exists already; not overwritten (use --force to replace it)", path=target)
     table = read_telemetry(args.data)
     result = fit_table(
         table,

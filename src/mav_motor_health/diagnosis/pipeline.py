@@ -7,6 +7,7 @@ the live agent calls it with each new sample and the carry from the previous cal
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,6 +16,7 @@ from numpy.typing import NDArray
 from ..model.dynamics import ResponseCarry, first_order_response, time_constant_s
 from ..model.equations import steady_state
 from ..model.params import MotorParams
+from ..model.predict import predict_steady
 from ..telemetry.table import TelemetryTable
 from .persistence import PersistenceCarry, announce
 from .plausibility import (
@@ -74,17 +76,20 @@ def diagnose_motor(
     command: NDArray[np.float64] | None = None,
     sensor_current_a: NDArray[np.float64] | None = None,
     extra_flags: NDArray[np.int16] | None = None,
+    context: Mapping[str, NDArray[np.float64]] | None = None,
 ) -> tuple[dict[str, NDArray], MotorCarry]:
     """Diagnose one motor's samples (increasing time); returns result columns and the new carry.
 
     ``current_a`` is the motor current; ``sensor_current_a`` the current as the sensor reported it (the
     ESC input current), checked for plausibility; ``command`` the normalised motor command (0..1);
-    ``extra_flags`` :class:`SensorIssue` flags found across motors (the currents' sum).
+    ``extra_flags`` :class:`SensorIssue` flags found across motors (the currents' sum); ``context`` the
+    samples' other columns (temperatures, altitude...), which a model with fitted effects
+    (``params.effects``) reads; the base model ignores it.
     """
     carry = carry or MotorCarry()
     t = np.asarray(time_s, dtype=float)
     v = np.asarray(voltage_v, dtype=float)
-    model = steady_state(params, v)
+    model = predict_steady(params, v, context) if params.effects else steady_state(params, v)
     rule = profile.steady
     if rule.kind == "dynamic" and params.J_kg_m2 is not None:
         tau = time_constant_s(params, model.omega_rad_s)
@@ -194,6 +199,13 @@ def diagnose(
     for motor in ordered.motors():
         sel = np.flatnonzero(motors == motor)
         motor_params = params[motor] if isinstance(params, dict) else params
+        context = None
+        if motor_params.effects:
+            context = {
+                name: np.asarray(ordered[name][sel], dtype=float)
+                for name in ordered.names
+                if ordered[name].dtype.kind in "biuf"
+            }
         cols, _ = diagnose_motor(
             motor_params,
             profile,
@@ -205,6 +217,7 @@ def diagnose(
             command=part(command, sel),
             sensor_current_a=part(sensor_current, sel),
             extra_flags=part(sum_flags, sel),
+            context=context,
         )
         for name, values in cols.items():
             out[name][sel] = values
@@ -245,8 +258,12 @@ class StreamingDiagnoser:
         command: float | None = None,
         sensor_current_a: float | None = None,
         extra_flags: int = 0,
+        context: Mapping[str, float] | None = None,
     ) -> dict[str, object]:
-        """Diagnose one new sample of one motor; returns the result row (state codes as ints)."""
+        """Diagnose one new sample of one motor; returns the result row (state codes as ints).
+
+        ``context`` gives the sample's other variables for a model with effects.
+        """
 
         def one(x: float | None) -> NDArray[np.float64] | None:
             return None if x is None else np.array([x], dtype=float)
@@ -261,6 +278,7 @@ class StreamingDiagnoser:
             command=one(command),
             sensor_current_a=one(sensor_current_a),
             extra_flags=np.array([extra_flags], dtype=np.int16),
+            context=None if context is None else {k: np.array([v], dtype=float) for k, v in context.items()},
         )
         return {
             "time_s": time_s,
@@ -283,6 +301,7 @@ class StreamingDiagnoser:
         command: NDArray[np.float64] | None = None,
         sensor_current_a: NDArray[np.float64] | None = None,
         extra_flags: NDArray[np.int16] | None = None,
+        context: Mapping[str, NDArray[np.float64]] | None = None,
     ) -> dict[str, NDArray]:
         """Diagnose a few new samples of one motor at once (same results as one by one, less overhead)."""
         motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
@@ -302,6 +321,7 @@ class StreamingDiagnoser:
             command=arr(command),
             sensor_current_a=arr(sensor_current_a),
             extra_flags=extra_flags,
+            context=context,
         )
         return cols
 

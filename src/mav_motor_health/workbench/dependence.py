@@ -2,9 +2,10 @@
 
 Distance correlation (Székely et al. 2007) is zero only when two variables are independent, so it sees
 non-linear and non-monotone dependence that a correlation coefficient misses. Both the residual and each
-candidate variable are first taken *beyond voltage*: their mean in each voltage bin is removed, so a
+candidate variable are first taken *beyond voltage*: a straight line in each voltage decile is removed, so a
 variable that merely follows the operating point (throttle, bus current) does not score for what the
-model already uses. Significance: the residual is permuted (seeded) and the largest distance correlation
+model already uses; the residual is also divided by its spread in each voltage bin, so sensor noise
+that grows with load does not count as dependence. Significance: the residual is permuted (seeded) and the largest distance correlation
 over all variables is recorded for each permutation; a variable is significant when its score beats the
 99th percentile of that maximum (a family-wise 1 % level over all variables). Variables that drift
 together (temperature and altitude in one flight) would all look significant, so selection is greedy:
@@ -62,6 +63,19 @@ def _dcor(a: FloatArray, b: FloatArray, vaa: float, vbb: float) -> float:
     return float(np.sqrt(max((a * b).mean(), 0.0) / np.sqrt(vaa * vbb)))
 
 
+def _standardised(values: FloatArray, voltage: FloatArray, bins: int) -> FloatArray:
+    """Residual beyond voltage and divided by its spread in each voltage bin: noise that merely grows
+    with load (heteroscedastic sensors) then depends on nothing."""
+    out = _beyond(values, voltage, bins)
+    edges = np.unique(np.quantile(voltage, np.linspace(0, 1, bins + 1)))
+    key = np.clip(np.searchsorted(edges, voltage, side="right") - 1, 0, max(len(edges) - 2, 0))
+    for b in np.unique(key):
+        sel = key == b
+        spread = np.sqrt(np.mean(out[sel] ** 2, axis=0))
+        out[sel] = out[sel] / np.where(spread > 0, spread, 1.0)
+    return out
+
+
 def _beyond(values: FloatArray, voltage: FloatArray, bins: int) -> FloatArray:
     edges = np.unique(np.quantile(voltage, np.linspace(0, 1, bins + 1)))
     key = np.clip(np.searchsorted(edges, voltage, side="right") - 1, 0, max(len(edges) - 2, 0))
@@ -83,7 +97,7 @@ def rank_variables(
     variables: Mapping[str, ArrayLike],
     *,
     seed: int = 0,
-    max_samples: int = 500,
+    max_samples: int = 300,
     permutations: int = 99,
     voltage_bins: int = 10,
     max_selected: int = 3,
@@ -104,7 +118,7 @@ def rank_variables(
     if len(idx) < 8 or not usable:
         return []
     rv, vv = r[idx], v[idx]
-    b = _centered_distances(_beyond(rv, vv, voltage_bins))
+    b = _centered_distances(_standardised(rv, vv, voltage_bins))
     vbb = float((b * b).mean())
     mats = {}
     for name, x in usable.items():
@@ -115,7 +129,7 @@ def rank_variables(
     scores = {name: _dcor(a, b, vaa, vbb) for name, (a, vaa) in mats.items()}
     first_threshold = math.nan
     selected: list[str] = []
-    remaining = _beyond(rv, vv, voltage_bins)
+    remaining = _standardised(rv, vv, voltage_bins)
     while len(selected) < max_selected:
         candidates = {n: m for n, m in mats.items() if n not in selected}
         if not candidates:
@@ -135,8 +149,7 @@ def rank_variables(
         if current[best] <= threshold:
             break
         selected.append(best)
-        xs = variables[best]
-        xs = np.asarray(xs, float)[idx]
+        xs = np.asarray(variables[best], float)[idx]
         remaining = _beyond(remaining, np.where(np.isfinite(xs), xs, np.nanmedian(xs)), 10)
     ranked = sorted(
         scores, key=lambda n: (n not in selected, selected.index(n) if n in selected else -scores[n])

@@ -78,7 +78,7 @@ def fit_with_effects(
     *,
     registry: Mapping[str, Effect] | None = None,
     base: FitResult | None = None,
-    max_samples: int = 3000,
+    max_samples: int = 1500,
 ) -> EffectSteps:
     """Fit the base model, then add ``effect_names`` one by one, refitting everything at each step."""
     data = data.usable()

@@ -99,7 +99,8 @@ class Effect:
 
     ``needs`` lists the context variables the function reads; ``"a|b"`` means "a, or else b" (the
     function always sees it under the first name). ``optional`` variables are passed when present.
-    The physics is written in the function's docstring (:attr:`physics`).
+    The physics is written in the function's docstring (:attr:`physics`); ``summary`` defaults to its
+    first line.
     """
 
     name: str
@@ -115,6 +116,9 @@ class Effect:
         names = [p.name for p in self.parameters]
         if len(set(names)) != len(names):
             raise ConfigError(f"effect '{self.name}' declares a parameter twice: {names}")
+        if not self.summary:
+            first = (self.function.__doc__ or self.name).strip().splitlines()[0]
+            object.__setattr__(self, "summary", first.rstrip("."))
 
     @property
     def physics(self) -> str:

@@ -28,6 +28,7 @@ __all__ = ["BASE_PARAMETERS", "EffectsFit", "fit_effects", "forward_errors"]
 
 FloatArray = NDArray[np.float64]
 BASE_PARAMETERS = ("R_ohm", "k_e", "C_p", "B", "T_f")
+SCREEN_NFEV = 8
 
 
 @dataclass(frozen=True)
@@ -130,9 +131,14 @@ def fit_effects(
         k0 = float(start.k)
         k_choices = [k0] + ([k0 - 1, k0 + 1] if k0.is_integer() and not vary_k else [])
         k_choices = [k for k in k_choices if 1 <= k <= 5]
-    fits = [
-        _fit_one(
-            start.replace(k=float(k)),
+    # Another exponent starts with the same load at a typical speed (C_p·ω_ref^k unchanged); each
+    # exponent gets a short screening fit, and only the best one is refined to convergence.
+    w = np.abs(np.asarray(omega_rad_s, dtype=float))
+    w_ref = float(np.sqrt(np.nanmean(w * w))) if np.isfinite(w).any() else 1.0
+
+    def run(begin: MotorParams, max_nfev: int) -> EffectsFit:
+        return _fit_one(
+            begin,
             effects,
             voltage_v,
             omega_rad_s,
@@ -141,10 +147,18 @@ def fit_effects(
             sigma=sigma,
             max_samples=max_samples,
             vary_k=vary_k,
+            max_nfev=max_nfev,
         )
+
+    if len(k_choices) == 1:
+        return run(start.replace(k=float(k_choices[0])), 200)
+    screened = [
+        run(start.replace(k=float(k), C_p=start.C_p * w_ref ** (start.k - float(k))), SCREEN_NFEV)
         for k in k_choices
     ]
-    return min(fits, key=lambda f: f.aic)
+    best = min(screened, key=lambda f: f.aic)
+    refined = run(best.params.replace(name=start.name), 200)
+    return min((best, refined), key=lambda f: f.aic)
 
 
 def _fit_one(
@@ -158,6 +172,7 @@ def _fit_one(
     sigma: tuple[float, float] | None,
     max_samples: int,
     vary_k: bool,
+    max_nfev: int = 200,
 ) -> EffectsFit:
     v_all = np.asarray(voltage_v, dtype=float)
     w_all = np.asarray(omega_rad_s, dtype=float)
@@ -250,7 +265,7 @@ def _fit_one(
         r = np.concatenate([(w - pw) / s_w, (i - pi) / s_i])
         return np.where(np.isfinite(r), r, 1e3)
 
-    result = least_squares(residual, z0, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=200)
+    result = least_squares(residual, z0, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev)
     x = result.x * sc
     params, values = unpack(x)
     try:
