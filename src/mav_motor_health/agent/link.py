@@ -91,7 +91,7 @@ class _QueueWriter:
         self.frames = frames
 
     def write(self, data: bytes) -> None:
-        self.frames.put(bytes(data))
+        self.frames.put_nowait(bytes(data))
 
 
 class MavlinkLink:
