@@ -143,6 +143,7 @@ def test_fault_is_announced_over_mavlink_and_mqtt_within_a_second(paper_motor, b
                 )
                 info = next(p for _, p in reversed(listener.on("/info")))
                 assert info["autopilot"] == "ardupilot" and info["motors"] == 6
+                assert agent.link.dropped == 0 and agent.link.bad_bytes == 0
 
     try:
         asyncio.run(main())
