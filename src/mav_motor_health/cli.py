@@ -22,6 +22,9 @@ COMMANDS = (
     "fit",
     "predict",
     "diagnose",
+    "simulate",
+    "score",
+    "sim",
     "agent",
 )
 
