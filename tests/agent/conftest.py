@@ -54,6 +54,8 @@ class Broker:
         self.conf.write_text(
             f"listener {self.port} 127.0.0.1\nallow_anonymous true\npersistence true\n"
             f"persistence_location {folder}/\nautosave_interval 1\n"
+            # as root, mosquitto would switch to user 'mosquitto', who cannot write in pytest's folders
+            + ("user root\n" if os.geteuid() == 0 else "")
         )
 
     def start(self) -> None:

@@ -158,14 +158,15 @@ class Agent:
     # -- receiving -----------------------------------------------------------------------------------
     async def _receive(self) -> None:
         while True:
-            item = await self.link.recv()
-            if item is None:
+            batch = await self.link.recv()
+            if batch is None:
                 self.flush()
                 for change in self.monitor.check_silence(self._last_time_s + 2 * self.monitor.stale_s):
                     self._changed(change)
                 self.finished.set()
                 return
-            self.handle(item)
+            for item in batch:
+                self.handle(item)
 
     def handle(self, item: Received) -> None:
         """Everything one message does (the agent's feeding path)."""

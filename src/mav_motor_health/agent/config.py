@@ -82,7 +82,8 @@ def load_agent_config(
     mq = top.table("mqtt")
     top.done()
 
-    vid = vehicle_id or agent.text("vehicle_id", "vehicle1")
+    file_vid = agent.text("vehicle_id", "vehicle1")
+    vid = vehicle_id or file_vid
     if not _VEHICLE_ID.match(vid):
         raise ConfigError(f"{vid!r}", path=where, key="agent.vehicle_id", expected="letters, digits, _ or -")
     motors = int(agent.number("motors", 6, minimum=1, maximum=12))
@@ -91,7 +92,8 @@ def load_agent_config(
     batch_s = agent.number("batch_s", 0.1, minimum=0.0, maximum=1.0, unit="s")
     agent.done()
 
-    url = connect or link.text("connect", "")
+    file_url = link.text("connect", "")
+    url = connect or file_url
     if not url:
         raise ConfigError(
             "missing", path=where, key="link.connect", expected="a MAVLink URL such as /dev/serial0:921600"
@@ -106,8 +108,9 @@ def load_agent_config(
     hb_timeout = link.number("heartbeat_timeout_s", 3.0, minimum=0.5, maximum=60.0, unit="s")
     link.done()
 
-    params_name = params or model.text("params", DEFAULT_MOTOR)
-    profile_name = profile or model.text("profile", "flight")
+    file_params, file_profile = model.text("params", DEFAULT_MOTOR), model.text("profile", "flight")
+    params_name = params or file_params
+    profile_name = profile or file_profile
     per_motor = model.table("motor")
     motor_params: MotorParams | dict[int, MotorParams] = load_motor_params(_resolve(params_name, base))
     overrides = {}
@@ -171,7 +174,8 @@ def _resolve(name: str, base: Path) -> str:
 def _mqtt(
     mq: _Section, where: Path, base: Path, url_override: str | None, vehicle_id: str
 ) -> MqttSettings | None:
-    url = url_override if url_override is not None else mq.text("url", "")
+    file_url = mq.text("url", "")
+    url = url_override if url_override is not None else file_url
     prefix = mq.text("prefix", "mmh")
     username = mq.text("username", "") or None
     password = mq.text("password", "") or None

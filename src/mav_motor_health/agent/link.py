@@ -91,7 +91,7 @@ class _QueueWriter:
         self.frames = frames
 
     def write(self, data: bytes) -> None:
-        self.frames.put(bytes(data))
+        self.frames.put_nowait(bytes(data))
 
 
 class MavlinkLink:
@@ -115,7 +115,8 @@ class MavlinkLink:
         self.clock = clock
         self._frames: queue.Queue[bytes | None] = queue.Queue(maxsize=1000)
         self.mav = mavlink2.MAVLink(_QueueWriter(self._frames), source_system, source_component)
-        self._inbox: asyncio.Queue[Received | None] = asyncio.Queue()
+        self._inbox: asyncio.Queue[list[Received] | None] = asyncio.Queue()
+        self._queued = 0  # messages in the inbox
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._conn: Any = None
@@ -150,9 +151,12 @@ class MavlinkLink:
         self._close_conn()
 
     # -- the loop's side -----------------------------------------------------------------------------
-    async def recv(self) -> Received | None:
-        """The next message; None when the link has ended (a tlog was read to its end)."""
-        return await self._inbox.get()
+    async def recv(self) -> list[Received] | None:
+        """The next messages (those that arrived together); None when the link has ended (a .tlog's end)."""
+        batch = await self._inbox.get()
+        if batch is not None:
+            self._queued -= len(batch)
+        return batch
 
     def send(self, msg: Any) -> None:
         """Encode and queue a message; drops it (with a log line) if the writer is far behind."""
@@ -171,20 +175,26 @@ class MavlinkLink:
         return self.opened.is_set()
 
     # -- threads -------------------------------------------------------------------------------------
-    def _deliver(self, item: Received | None, *, wait: bool = False) -> None:
+    def _deliver(self, batch: list[Received] | None, *, wait: bool = False) -> None:
+        """Hand messages to the loop: one wake-up per batch (a datagram, a read, a slice of a .tlog)."""
         loop = self._loop
         assert loop is not None
         if wait:
-            fut = asyncio.run_coroutine_threadsafe(self._inbox.put(item), loop)
-            fut.result()
+            asyncio.run_coroutine_threadsafe(self._put_waiting(batch), loop).result()
             return
-        loop.call_soon_threadsafe(self._put_live, item)
+        loop.call_soon_threadsafe(self._put_live, batch)
 
-    def _put_live(self, item: Received | None) -> None:
-        if self._inbox.qsize() >= _QUEUE_LIMIT:
-            self._inbox.get_nowait()
-            self.dropped += 1
-        self._inbox.put_nowait(item)
+    async def _put_waiting(self, batch: list[Received] | None) -> None:
+        self._queued += len(batch or ())
+        await self._inbox.put(batch)
+
+    def _put_live(self, batch: list[Received] | None) -> None:
+        while batch and self._queued >= _QUEUE_LIMIT and not self._inbox.empty():
+            old = self._inbox.get_nowait()  # the loop fell far behind: the oldest go first
+            self._queued -= len(old or ())
+            self.dropped += len(old or ())
+        self._queued += len(batch or ())
+        self._inbox.put_nowait(batch)
 
     def _open(self) -> Any:
         from pymavlink import mavutil  # transports only; imported late (it reads the environment)
@@ -237,8 +247,9 @@ class MavlinkLink:
                     self._stop.wait(self.reconnect_s)
                 continue
             now = self.clock()
-            for msg in self._parse(parser, data):
-                self._deliver(Received(now, msg))
+            msgs = self._parse(parser, data)
+            if msgs:
+                self._deliver([Received(now, msg) for msg in msgs])
 
     def _parse(self, parser: Any, data: bytes | str) -> list[Any]:
         if isinstance(data, str):
@@ -269,6 +280,7 @@ class MavlinkLink:
             return
         self.opened.set()
         pos = 0
+        batch: list[Received] = []
         while pos + 9 <= len(data) and not self._stop.is_set():
             (stamp_us,) = struct.unpack_from(">Q", data, pos)
             magic = data[pos + 8]
@@ -282,8 +294,12 @@ class MavlinkLink:
                 continue
             frame = data[pos + 8 : pos + 8 + size]
             pos += 8 + size
-            for msg in self._parse(parser, frame):
-                self._deliver(Received(stamp_us * 1e-6, msg), wait=True)
+            batch.extend(Received(stamp_us * 1e-6, msg) for msg in self._parse(parser, frame))
+            if len(batch) >= 200:
+                self._deliver(batch, wait=True)
+                batch = []
+        if batch:
+            self._deliver(batch, wait=True)
         self._deliver(None, wait=True)
 
     def _write_loop(self) -> None:

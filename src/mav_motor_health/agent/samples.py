@@ -17,6 +17,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ..telemetry import mavlink_esc
 
 __all__ = ["MotorSample", "SampleAssembler"]
@@ -166,29 +168,37 @@ class SampleAssembler:
         temps: list[float],
         counts: list[int] | None,
     ) -> list[MotorSample]:
-        samples = []
-        for j, motor in enumerate(motors):
-            if motor is None or not 1 <= motor <= self.motors:
-                continue
-            if counts is not None and self._repeated(motor, counts[j]):
-                continue
-            si = mavlink_esc.esc_fields_to_si(temps[j], voltage_cv[j], current_ca[j], rpm[j])
-            bus = float(si["bus_voltage_v"])
-            if not bus > 0:  # an ESC that does not measure its input: use the battery monitor
-                bus = self.battery_v
-            throttle = self.throttle(motor)
-            voltage, current = mavlink_esc.motor_inputs(throttle, bus, si["esc_current_a"])
-            samples.append(
-                MotorSample(
-                    motor=motor,
-                    time_s=time_s,
-                    omega_rad_s=float(si["omega_rad_s"]),
-                    current_a=float(current),
-                    voltage_v=float(voltage),
-                    bus_voltage_v=bus,
-                    throttle=throttle,
-                    esc_current_a=float(si["esc_current_a"]),
-                    esc_temp_c=float(si["esc_temp_c"]),
-                )
+        slots = [
+            j
+            for j, motor in enumerate(motors)
+            if motor is not None
+            and 1 <= motor <= self.motors
+            and not (counts is not None and self._repeated(motor, counts[j]))
+        ]
+        if not slots:
+            return []
+        # one vectorised call per message for its ESCs (the shared conversions, not a copy of them)
+        si = mavlink_esc.esc_fields_to_si(
+            [temps[j] for j in slots],
+            [voltage_cv[j] for j in slots],
+            [current_ca[j] for j in slots],
+            [rpm[j] for j in slots],
+        )
+        # an ESC that does not measure its input voltage: use the battery monitor's
+        bus = np.where(si["bus_voltage_v"] > 0, si["bus_voltage_v"], self.battery_v)
+        throttle = np.array([self.throttle(motors[j]) for j in slots])  # type: ignore[arg-type]
+        voltage, current = mavlink_esc.motor_inputs(throttle, bus, si["esc_current_a"])
+        return [
+            MotorSample(
+                motor=int(motors[j]),  # type: ignore[arg-type]
+                time_s=time_s,
+                omega_rad_s=float(si["omega_rad_s"][k]),
+                current_a=float(current[k]),
+                voltage_v=float(voltage[k]),
+                bus_voltage_v=float(bus[k]),
+                throttle=float(throttle[k]),
+                esc_current_a=float(si["esc_current_a"][k]),
+                esc_temp_c=float(si["esc_temp_c"][k]),
             )
-        return samples
+            for k, j in enumerate(slots)
+        ]
