@@ -281,20 +281,27 @@ class AgentLike:
         )
         return previous
 
-    def event(self, motor: int, label: str, previous: str, t_s: float) -> None:
+    def event(self, motor: int, label: str, previous: str, t_s: float, ago_s: float = 0.0) -> None:
+        """A state change, its evidence computed as the telemetry is (same model, same fault)."""
+        from mav_motor_health.model.equations import steady_state
+        from mav_motor_health.sim.steady import faulty_steady_state
+
+        voltage = self.flight_voltage(t_s) + 0.1 * motor
+        model = steady_state(self.params, voltage)
+        omega, current = faulty_steady_state(self.params, self.faults.get(motor, "NORMAL"), voltage)
         self.pub.publish(
             f"{self.base}/events",
             {
-                "time_utc": utc(),
+                "time_utc": utc(time.time() - ago_s),
                 "t_s": t_s,
                 "motor": motor,
                 "state": label,
                 "previous": previous,
                 "evidence": {
-                    "omega_rad_s": 905.0,
-                    "omega_model_rad_s": 772.0,
-                    "current_a": 1.9,
-                    "current_model_a": 4.6,
+                    "omega_rad_s": float(omega),
+                    "omega_model_rad_s": float(model.omega_rad_s),
+                    "current_a": float(current),
+                    "current_model_a": float(model.current_a),
                 },
             },
             qos=1,
