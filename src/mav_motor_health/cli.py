@@ -22,6 +22,7 @@ COMMANDS = (
     "fit",
     "predict",
     "diagnose",
+    "replay",
     "display",
 )
 
