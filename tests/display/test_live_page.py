@@ -222,3 +222,43 @@ def test_layout_is_ardupilot_hexa_x_on_screen(page: Any, display: Any, open_disp
     }
     assert spins == {1: "CW", 2: "CCW", 3: "CW", 4: "CCW", 5: "CCW", 6: "CW"}
     assert page.locator("#vehicle-picker").is_hidden()  # no vehicles yet: no picker
+
+
+def test_vehicle_announcing_hexa_plus_is_drawn_plus(
+    page: Any, display: Any, agent_like: Any, make_publisher: Any, open_display: Any
+) -> None:
+    server = display()
+    open_display(page, server)
+    x = agent_like("xframe")
+    healthy_vehicle(x)
+    plus = agent_like("plusframe", pub=make_publisher("agent-plus"))
+    plus.announce()
+    plus.pub.publish(
+        f"{plus.base}/info",
+        {"vehicle_id": "plusframe", "frame": "hexa-plus", "motors": 6, "autopilot": "ardupilot"},
+        retain=True,
+        qos=1,
+    )
+    plus.state(1, "F2.1", since_s_ago=5)
+    page.wait_for_selector('#vehicle-picker button[data-vehicle="plusframe"].kind-fault')
+
+    def motor1_offset() -> tuple[float, float]:
+        centre = page.locator("#hexaview .mmh-hv-body").bounding_box()
+        box = page.locator('#hexaview .mmh-hv-motor[data-motor="1"] .mmh-hv-disc').bounding_box()
+        return (
+            box["x"] + box["width"] / 2 - centre["x"] - centre["width"] / 2,
+            box["y"] + box["height"] / 2 - centre["y"] - centre["height"] / 2,
+        )
+
+    page.click('#vehicle-picker button[data-vehicle="xframe"]')
+    page.wait_for_selector('#hexaview[data-frame="hexa-x"]', state="attached")
+    dx, dy = motor1_offset()
+    assert dx > 100 and abs(dy) < 5  # hexa-X: motor 1 on the right
+    page.click('#vehicle-picker button[data-vehicle="plusframe"]')
+    page.wait_for_selector(
+        '#hexaview[data-frame="hexa-plus"] .mmh-hv-motor[data-motor="1"][data-state="F2.1"]'
+    )
+    dx, dy = motor1_offset()
+    assert abs(dx) < 5 and dy < -100  # hexa-plus: motor 1 on the nose
+    assert "phase open" in page.locator('.motor-card[data-motor="1"]').inner_text()
+    assert page.locator(".motor-card").count() == 6
