@@ -59,6 +59,11 @@ class Broker:
     mqtt_port: int
     ws_port: int
     workdir: Path
+    process: subprocess.Popen[bytes] | None = None
+
+    def stop(self) -> None:
+        if self.process is not None:
+            stop(self.process)
 
     @property
     def ws_url(self) -> str:
@@ -66,11 +71,11 @@ class Broker:
 
 
 def start_mosquitto(
-    workdir: Path, extra: str = "", listener_extra: str = ""
+    workdir: Path, extra: str = "", listener_extra: str = "", ports: tuple[int, int] | None = None
 ) -> tuple[Broker, subprocess.Popen[bytes]]:
-    """mosquitto 2.x with a plain MQTT and a WebSocket listener on free loopback ports."""
+    """mosquitto 2.x with a plain MQTT and a WebSocket listener on free loopback ports (or ``ports``)."""
     workdir.mkdir(parents=True, exist_ok=True)
-    mqtt_port, ws_port = free_port(), free_port()
+    mqtt_port, ws_port = ports or (free_port(), free_port())
     conf = workdir / "mosquitto.conf"
     # As root mosquitto drops to user "mosquitto", which cannot read files in pytest's private tmp.
     run_as = "user root\n" if os.geteuid() == 0 else ""
@@ -352,14 +357,16 @@ def mosquitto_factory(tmp_path: Path) -> Iterator[Callable[..., Broker]]:
     """Factory: a broker of its own with extra global config (auth, ACL), stopped after the test."""
     procs: list[subprocess.Popen[bytes]] = []
 
-    def make(extra: str) -> Broker:
-        b, proc = start_mosquitto(tmp_path / f"mosquitto{len(procs)}", extra=extra)
+    def make(extra: str, ports: tuple[int, int] | None = None) -> Broker:
+        b, proc = start_mosquitto(tmp_path / f"mosquitto{len(procs)}", extra=extra, ports=ports)
+        b.process = proc
         procs.append(proc)
         return b
 
     yield make
     for proc in procs:
-        stop(proc)
+        if proc.poll() is None:
+            stop(proc)
 
 
 @pytest.fixture

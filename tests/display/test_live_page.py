@@ -262,3 +262,45 @@ def test_vehicle_announcing_hexa_plus_is_drawn_plus(
     assert abs(dx) < 5 and dy < -100  # hexa-plus: motor 1 on the nose
     assert "phase open" in page.locator('.motor-card[data-motor="1"]').inner_text()
     assert page.locator(".motor-card").count() == 6
+
+
+def test_page_reconnects_after_the_broker_restarts(
+    page: Any, display_for: Any, mosquitto_factory: Any, make_publisher: Any, open_display: Any, prefix: str
+) -> None:
+    broker = mosquitto_factory("allow_anonymous true\n")
+    server = display_for(broker, prefix, stale_after_s=30.0)
+    open_display(page, server)
+    broker.stop()
+    page.wait_for_selector('#broker-status[data-state="disconnected"]')
+    restarted = mosquitto_factory("allow_anonymous true\n", ports=(broker.mqtt_port, broker.ws_port))
+    page.wait_for_selector('#broker-status[data-state="connected"]', timeout=15_000)
+    agent = make_publisher("agent-after-restart", port=restarted.mqtt_port)
+    agent.publish(
+        f"{prefix}/again/motor/3/state",
+        {
+            "motor": 3,
+            "state": "F1.1",
+            "code": 1,
+            "description": "bearing friction",
+            "since_utc": "2026-01-01T00:00:00Z",
+        },
+        retain=True,
+        qos=1,
+    )
+    page.wait_for_selector('#hexaview .mmh-hv-motor[data-motor="3"][data-state="F1.1"]')
+
+
+def test_keepalive_pings_keep_the_connection(
+    page: Any, display_for: Any, mosquitto_factory: Any, prefix: str
+) -> None:
+    """With a 2 s keep-alive the broker would drop a silent client after 3 s: the page pings instead."""
+    broker = mosquitto_factory("allow_anonymous true\n")
+    server = display_for(broker, prefix, keepalive_s=2)
+    page.goto(server.url)
+    page.wait_for_selector('#broker-status[data-state="connected"]')
+    page.wait_for_timeout(4500)
+    log = (broker.workdir / "mosquitto.log").read_text()
+    assert re.search(r"Received PINGREQ from mmh-display-", log), log[-2000:]
+    assert "exceeded timeout" not in log
+    assert page.locator("#broker-status").get_attribute("data-state") == "connected"
+    assert len(re.findall(r"New client connected .* as mmh-display-", log)) == 1  # never reconnected

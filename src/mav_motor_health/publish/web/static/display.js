@@ -74,6 +74,7 @@
     start() {
       this.client = new MmhMqttSubscriber(this.brokerUrl(), {
         topics: [this.prefix + "/#"],
+        keepaliveS: this.cfg.keepalive_s,
         onMessage: (topic, payload, retained) => this.onMessage(topic, payload, retained),
         onStatus: (state, detail) => this.onStatus(state, detail),
       });
