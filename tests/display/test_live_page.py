@@ -74,6 +74,7 @@ def test_motor_4_fault_changes_colour_and_is_named(
     assert "propeller damage" in card.inner_text()
     assert "since" in card.inner_text()
     assert "NORMAL → F3.1" in page.locator("#event-log").inner_text()
+    assert page.title().startswith("FAULT uav1")
     # the other five stay green
     for m in (1, 2, 3, 5, 6):
         assert is_green(fill_rgb(page, m)), m

@@ -74,3 +74,16 @@ def test_report_view_is_drawn_on_the_logs_own_frame(real_logs: Path) -> None:
     assert layout_for_log(table.meta, table.motors()) == ("hexa-plus", "")
     assert layout_for_log({}, [1, 2, 3, 4, 5, 6])[0] == "hexa-x"
     assert layout_for_log({"params": {"FRAME_CLASS": 3, "FRAME_TYPE": 1}}, list(range(1, 9)))[0] is None
+
+
+def test_report_view_png(page: Any, report: Path, tmp_path: Path) -> None:
+    """The picture in docs/display.md: the replayed simulated flight's report, its top view at the end."""
+    import os
+
+    page.set_viewport_size({"width": 1000, "height": 900})
+    page.goto(report.as_uri())
+    page.locator(".mmh-replay-slider").press("End")
+    assert page.locator('.mmh-replay .mmh-hv-motor[data-motor="4"]').get_attribute("data-state") == "F3.1"
+    out = Path(os.environ.get("MMH_REPLAY_PNG", tmp_path / "display-replay.png"))
+    page.locator(".mmh-replay-section").screenshot(path=str(out))
+    assert out.stat().st_size > 10_000

@@ -312,6 +312,9 @@
       this.dirty = false;
       const now = Date.now();
       this.renderPicker(now);
+      // The tab title tells of a fault on any vehicle, even while the window is in the background.
+      const faulty = [...this.vehicles.values()].filter((veh) => this.worstKind(veh, now) === "fault").map((veh) => veh.id);
+      document.title = faulty.length ? `FAULT ${faulty.sort().join(", ")} — Motor health` : "Motor health";
       const v = this.selected ? this.vehicles.get(this.selected) : null;
       this.setFrame(this.frameOf(v));
       $("vehicle-name").textContent = v ? v.id : "";
