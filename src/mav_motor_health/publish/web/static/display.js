@@ -95,8 +95,12 @@
       }
       this.client.stopped = false;
       setInterval(() => this.render(), 1000);
-      const frame = () => {
-        if (this.dirty) {
+      // Redraw when something changed, at most five times a second: telemetry of many vehicles
+      // must not keep a field laptop's CPU busy.
+      let lastRenderMs = 0;
+      const frame = (nowMs) => {
+        if (this.dirty && nowMs - lastRenderMs >= 200) {
+          lastRenderMs = nowMs;
           this.render();
         }
         requestAnimationFrame(frame);
