@@ -103,31 +103,41 @@ def follow_chain(
     i = first
     if i > 0 and n:
         damage.add(0, int(starts[i]))
+    jumped_from = -1  # the record whose successor was reached by jumping over false candidates
     while i < n:
         j = int(run_end_of[i])
         nxt = int(next_starts[j])
-        if nxt > size:  # the last record is cut short
-            pieces.append(np.arange(i, j, dtype=np.int64))
-            damage.truncated_at = int(starts[j])
-            break
         pieces.append(np.arange(i, j + 1, dtype=np.int64))
         if nxt == size:
             break
-        k = int(np.searchsorted(starts, nxt))
-        if k < n and starts[k] == nxt:
-            i = k  # a false candidate sat between j and its successor: the chain goes on
-            continue
-        # The chain is broken after record j: resynchronise on the next acceptable candidate.
-        k = int(np.searchsorted(starts, starts[j], side="right"))
+        if nxt < size:
+            k = int(np.searchsorted(starts, nxt))
+            if k < n and starts[k] == nxt:
+                # False candidates (sync bytes inside payloads) sat between j and its successor.
+                jumped_from, i = j, k
+                continue
+        # The chain is broken after record j. If j was reached by a jump and is followed by nothing,
+        # the jump itself was wrong (a damaged length landed on a false candidate): undo it.
+        resync_from = j
+        if jumped_from >= 0 and pieces[-1][0] == i and len(pieces[-1]) <= 2 and jumped_from < i:
+            damage.bad_records += len(pieces.pop())
+            resync_from = jumped_from
+        jumped_from = -1
+        k = int(np.searchsorted(starts, starts[resync_from], side="right"))
         while k < n and not accept(k):
             k += 1
+        last = int(pieces[-1][-1]) if pieces and len(pieces[-1]) else -1
+        claimed = int(next_starts[last]) if last >= 0 else 0
         if k >= n:
-            if size - nxt > tail_slack:
-                damage.add(nxt, size - nxt)
+            if claimed > size and last >= 0:  # the last record is cut short
+                pieces[-1] = pieces[-1][:-1]
+                damage.truncated_at = int(starts[last])
+            elif size - claimed > tail_slack:
+                damage.add(claimed, size - claimed)
             break
-        damage.add(min(nxt, int(starts[k])), max(int(starts[k]) - nxt, 0))
-        if starts[k] < nxt:
-            # record j overlaps the next good record: its own length field was damaged; drop it.
+        damage.add(min(claimed, int(starts[k])), max(int(starts[k]) - claimed, 0))
+        if last >= 0 and starts[k] < claimed:
+            # the last record overlaps the next good one: its own length field was damaged; drop it.
             pieces[-1] = pieces[-1][:-1]
             damage.bad_records += 1
         i = k

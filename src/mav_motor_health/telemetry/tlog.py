@@ -201,11 +201,33 @@ def read_messages(
         j = int(np.searchsorted(cand, next_start[k]))
         return next_start[k] == size + 8 or (j < len(cand) and cand[j] == next_start[k])
 
-    damage = out.damage
-    first = 0
-    while first < len(cand) and (cand[first] != 8 and not accept(first)):
-        first += 1
-    chain = follow_chain(cand, next_start, size + 8, accept, damage, first=first)
+    # Walk the chain; frames of the decoded messages whose CRC fails are taken out of the candidates
+    # and the chain is walked again, so a damaged length cannot lead the walk astray.
+    wanted_ids = np.array([by_name[n].msgid for n in names if n in by_name], dtype=np.int64)
+    active = np.ones(len(cand), dtype=bool)
+    bad_total, bad_offsets = 0, []
+    for _attempt in range(10):
+        live = np.flatnonzero(active)
+        damage = Damage()
+
+        def accept_live(k: int, live: NDArray[np.int64] = live) -> bool:
+            return accept(int(live[k]))
+
+        first = 0
+        while first < len(live) and cand[live[first]] != 8 and not accept_live(first):
+            first += 1
+        chain = live[follow_chain(cand[live], next_start[live], size + 8, accept_live, damage, first=first)]
+        used = np.flatnonzero(np.isin(msgid[chain], wanted_ids))
+        bad = used[~frame_ok(chain[used])]
+        if len(bad) == 0:
+            break
+        active[chain[bad]] = False
+        bad_total += len(bad)
+        bad_offsets += (cand[chain[bad]] - 8).tolist()
+    damage.bad_records += bad_total
+    if bad_offsets:
+        damage.offsets = sorted(set(damage.offsets) | set(bad_offsets))
+    out.damage = damage
     if len(chain) == 0:
         raise LogFormatError("no valid MAVLink frame found: not a .tlog file", path=path, offset=0)
     stamps = gather_rows(data, cand[chain] - 8, 8).view(">u8").ravel()
@@ -221,12 +243,6 @@ def read_messages(
             continue
         sel = np.flatnonzero(ids == spec.msgid)
         rows = chain[sel]
-        good = frame_ok(rows)
-        if not good.all():
-            damage.bad_records += int((~good).sum())
-            damage.offsets.extend(int(o) - 8 for o in cand[rows[~good]][:5])
-            rows, sel = rows[good], sel[good]
-            out.counts[name] = len(rows)
         payload = gather_rows(data, cand[rows] + header[rows], spec.dtype.itemsize, plen[rows])
         out.messages[name] = payload.view(spec.dtype).ravel()
         out.time_us[name] = stamps[sel]

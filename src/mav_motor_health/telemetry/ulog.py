@@ -181,16 +181,29 @@ def read_ulog_topics(path: str | Path, topics: Iterable[str] = USED_TOPICS, *, w
         return msg_type != ord("S") or raw[p + 3 : p + 3 + len(SYNC_MAGIC)] == SYNC_MAGIC
 
     def resync(p: int) -> int:
-        """The next offset after ``p`` where a plausible message is followed by another one."""
-        d_type = np.flatnonzero(data[p + 1 :] == ord("D")) + p + 1 - 2
-        for q in d_type[d_type >= p + 1].tolist():
-            if plausible(q):
-                nxt = q + 3 + unpack_header(raw, q)[0]
-                if nxt >= size or plausible(nxt):
-                    return int(q)
+        """The next offset after ``p`` that starts three plausible messages in a row, one of them a data
+        message of a subscribed topic with the right size (or that reaches the end of the file)."""
+        for q in range(p + 1, size - 2):
+            if raw[q + 2] not in _KNOWN_TYPES or not plausible(q):
+                continue
+            strong, r = False, q
+            for _ in range(3):
+                if r >= size:
+                    break
+                if not plausible(r):
+                    strong = False
+                    break
+                strong = strong or raw[r + 2] in (ord("D"), ord("S"))
+                r = r + 3 + unpack_header(raw, r)[0]
+            if strong:
+                return q
         return size
 
+    previous = HEADER_SIZE - 3  # start of the last message accepted
+    current = HEADER_SIZE - 3  # start of the message being read, once accepted
+    floor = HEADER_SIZE - 1  # a resynchronisation never goes back before the last one
     while pos + 3 <= size:
+        previous, current = current, pos  # every path below accepts the message, except the last one
         msg_size, msg_type = unpack_header(raw, pos)
         end = pos + 3 + msg_size
         if end > size:
@@ -239,9 +252,12 @@ def read_ulog_topics(path: str | Path, topics: Iterable[str] = USED_TOPICS, *, w
         ):  # 'B' 'M' 'L' 'C' 'O' 'R'
             pos = end
             continue
-        # Not a valid message here: the log is damaged. Resynchronise.
-        nxt = resync(pos)
-        damage.add(pos, nxt - pos)
+        # Not a valid message here: the log is damaged. The previous message's length may be what was
+        # damaged, so resynchronise from just after the previous message's header.
+        nxt = resync(max(previous + 2, floor))
+        damage.add(min(pos, nxt), abs(nxt - pos))
+        floor = nxt
+        current = previous  # the message at pos was not accepted
         pos = nxt
     if pos < size and damage.truncated_at is None and size - pos >= 3:
         damage.truncated_at = pos
