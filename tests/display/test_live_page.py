@@ -75,6 +75,11 @@ def test_motor_4_fault_changes_colour_and_is_named(
     assert "since" in card.inner_text()
     assert "NORMAL → F3.1" in page.locator("#event-log").inner_text()
     assert page.title().startswith("FAULT uav1")
+    # one vehicle: no picker, its name in the bar instead
+    page.wait_for_timeout(300)
+    assert page.locator('#vehicle-picker button[data-vehicle="uav1"]').count() == 1
+    assert page.locator("#vehicle-picker").is_hidden()
+    assert page.locator("#vehicle-name").inner_text() == "uav1"
     # the other five stay green
     for m in (1, 2, 3, 5, 6):
         assert is_green(fill_rgb(page, m)), m
