@@ -59,6 +59,11 @@ class Broker:
     mqtt_port: int
     ws_port: int
     workdir: Path
+    process: subprocess.Popen[bytes] | None = None
+
+    def stop(self) -> None:
+        if self.process is not None:
+            stop(self.process)
 
     @property
     def ws_url(self) -> str:
@@ -66,11 +71,11 @@ class Broker:
 
 
 def start_mosquitto(
-    workdir: Path, extra: str = "", listener_extra: str = ""
+    workdir: Path, extra: str = "", listener_extra: str = "", ports: tuple[int, int] | None = None
 ) -> tuple[Broker, subprocess.Popen[bytes]]:
-    """mosquitto 2.x with a plain MQTT and a WebSocket listener on free loopback ports."""
+    """mosquitto 2.x with a plain MQTT and a WebSocket listener on free loopback ports (or ``ports``)."""
     workdir.mkdir(parents=True, exist_ok=True)
-    mqtt_port, ws_port = free_port(), free_port()
+    mqtt_port, ws_port = ports or (free_port(), free_port())
     conf = workdir / "mosquitto.conf"
     # As root mosquitto drops to user "mosquitto", which cannot read files in pytest's private tmp.
     run_as = "user root\n" if os.geteuid() == 0 else ""
@@ -281,20 +286,27 @@ class AgentLike:
         )
         return previous
 
-    def event(self, motor: int, label: str, previous: str, t_s: float) -> None:
+    def event(self, motor: int, label: str, previous: str, t_s: float, ago_s: float = 0.0) -> None:
+        """A state change, its evidence computed as the telemetry is (same model, same fault)."""
+        from mav_motor_health.model.equations import steady_state
+        from mav_motor_health.sim.steady import faulty_steady_state
+
+        voltage = self.flight_voltage(t_s) + 0.1 * motor
+        model = steady_state(self.params, voltage)
+        omega, current = faulty_steady_state(self.params, self.faults.get(motor, "NORMAL"), voltage)
         self.pub.publish(
             f"{self.base}/events",
             {
-                "time_utc": utc(),
+                "time_utc": utc(time.time() - ago_s),
                 "t_s": t_s,
                 "motor": motor,
                 "state": label,
                 "previous": previous,
                 "evidence": {
-                    "omega_rad_s": 905.0,
-                    "omega_model_rad_s": 772.0,
-                    "current_a": 1.9,
-                    "current_model_a": 4.6,
+                    "omega_rad_s": float(omega),
+                    "omega_model_rad_s": float(model.omega_rad_s),
+                    "current_a": float(current),
+                    "current_model_a": float(model.current_a),
                 },
             },
             qos=1,
@@ -345,14 +357,16 @@ def mosquitto_factory(tmp_path: Path) -> Iterator[Callable[..., Broker]]:
     """Factory: a broker of its own with extra global config (auth, ACL), stopped after the test."""
     procs: list[subprocess.Popen[bytes]] = []
 
-    def make(extra: str) -> Broker:
-        b, proc = start_mosquitto(tmp_path / f"mosquitto{len(procs)}", extra=extra)
+    def make(extra: str, ports: tuple[int, int] | None = None) -> Broker:
+        b, proc = start_mosquitto(tmp_path / f"mosquitto{len(procs)}", extra=extra, ports=ports)
+        b.process = proc
         procs.append(proc)
         return b
 
     yield make
     for proc in procs:
-        stop(proc)
+        if proc.poll() is None:
+            stop(proc)
 
 
 @pytest.fixture
@@ -384,3 +398,14 @@ def display_for() -> Iterator[Callable[..., DisplayServer]]:
     yield make
     for s in servers:
         s.__exit__(None, None, None)
+
+
+@pytest.fixture(scope="session")
+def real_logs() -> Path:
+    """``shared/real_logs`` beside the clone (CI), or beside any folder above it (a git worktree)."""
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        candidate = parent / "shared" / "real_logs"
+        if candidate.is_dir():
+            return candidate
+    pytest.fail(f"the shared real logs are missing: expected shared/real_logs beside a folder above {here}")

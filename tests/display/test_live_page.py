@@ -74,6 +74,12 @@ def test_motor_4_fault_changes_colour_and_is_named(
     assert "propeller damage" in card.inner_text()
     assert "since" in card.inner_text()
     assert "NORMAL → F3.1" in page.locator("#event-log").inner_text()
+    assert page.title().startswith("FAULT uav1")
+    # one vehicle: no picker, its name in the bar instead
+    page.wait_for_timeout(300)
+    assert page.locator('#vehicle-picker button[data-vehicle="uav1"]').count() == 1
+    assert page.locator("#vehicle-picker").is_hidden()
+    assert page.locator("#vehicle-name").inner_text() == "uav1"
     # the other five stay green
     for m in (1, 2, 3, 5, 6):
         assert is_green(fill_rgb(page, m)), m
@@ -222,3 +228,85 @@ def test_layout_is_ardupilot_hexa_x_on_screen(page: Any, display: Any, open_disp
     }
     assert spins == {1: "CW", 2: "CCW", 3: "CW", 4: "CCW", 5: "CCW", 6: "CW"}
     assert page.locator("#vehicle-picker").is_hidden()  # no vehicles yet: no picker
+
+
+def test_vehicle_announcing_hexa_plus_is_drawn_plus(
+    page: Any, display: Any, agent_like: Any, make_publisher: Any, open_display: Any
+) -> None:
+    server = display()
+    open_display(page, server)
+    x = agent_like("xframe")
+    healthy_vehicle(x)
+    plus = agent_like("plusframe", pub=make_publisher("agent-plus"))
+    plus.announce()
+    plus.pub.publish(
+        f"{plus.base}/info",
+        {"vehicle_id": "plusframe", "frame": "hexa-plus", "motors": 6, "autopilot": "ardupilot"},
+        retain=True,
+        qos=1,
+    )
+    plus.state(1, "F2.1", since_s_ago=5)
+    page.wait_for_selector('#vehicle-picker button[data-vehicle="plusframe"].kind-fault')
+
+    def motor1_offset() -> tuple[float, float]:
+        centre = page.locator("#hexaview .mmh-hv-body").bounding_box()
+        box = page.locator('#hexaview .mmh-hv-motor[data-motor="1"] .mmh-hv-disc').bounding_box()
+        return (
+            box["x"] + box["width"] / 2 - centre["x"] - centre["width"] / 2,
+            box["y"] + box["height"] / 2 - centre["y"] - centre["height"] / 2,
+        )
+
+    page.click('#vehicle-picker button[data-vehicle="xframe"]')
+    page.wait_for_selector('#hexaview[data-frame="hexa-x"]', state="attached")
+    dx, dy = motor1_offset()
+    assert dx > 100 and abs(dy) < 5  # hexa-X: motor 1 on the right
+    page.click('#vehicle-picker button[data-vehicle="plusframe"]')
+    page.wait_for_selector(
+        '#hexaview[data-frame="hexa-plus"] .mmh-hv-motor[data-motor="1"][data-state="F2.1"]'
+    )
+    dx, dy = motor1_offset()
+    assert abs(dx) < 5 and dy < -100  # hexa-plus: motor 1 on the nose
+    assert "phase open" in page.locator('.motor-card[data-motor="1"]').inner_text()
+    assert page.locator(".motor-card").count() == 6
+
+
+def test_page_reconnects_after_the_broker_restarts(
+    page: Any, display_for: Any, mosquitto_factory: Any, make_publisher: Any, open_display: Any, prefix: str
+) -> None:
+    broker = mosquitto_factory("allow_anonymous true\n")
+    server = display_for(broker, prefix, stale_after_s=30.0)
+    open_display(page, server)
+    broker.stop()
+    page.wait_for_selector('#broker-status[data-state="disconnected"]')
+    restarted = mosquitto_factory("allow_anonymous true\n", ports=(broker.mqtt_port, broker.ws_port))
+    page.wait_for_selector('#broker-status[data-state="connected"]', timeout=15_000)
+    agent = make_publisher("agent-after-restart", port=restarted.mqtt_port)
+    agent.publish(
+        f"{prefix}/again/motor/3/state",
+        {
+            "motor": 3,
+            "state": "F1.1",
+            "code": 1,
+            "description": "bearing friction",
+            "since_utc": "2026-01-01T00:00:00Z",
+        },
+        retain=True,
+        qos=1,
+    )
+    page.wait_for_selector('#hexaview .mmh-hv-motor[data-motor="3"][data-state="F1.1"]')
+
+
+def test_keepalive_pings_keep_the_connection(
+    page: Any, display_for: Any, mosquitto_factory: Any, prefix: str
+) -> None:
+    """With a 2 s keep-alive the broker would drop a silent client after 3 s: the page pings instead."""
+    broker = mosquitto_factory("allow_anonymous true\n")
+    server = display_for(broker, prefix, keepalive_s=2)
+    page.goto(server.url)
+    page.wait_for_selector('#broker-status[data-state="connected"]')
+    page.wait_for_timeout(4500)
+    log = (broker.workdir / "mosquitto.log").read_text()
+    assert re.search(r"Received PINGREQ from mmh-display-", log), log[-2000:]
+    assert "exceeded timeout" not in log
+    assert page.locator("#broker-status").get_attribute("data-state") == "connected"
+    assert len(re.findall(r"New client connected .* as mmh-display-", log)) == 1  # never reconnected

@@ -32,7 +32,7 @@ def publish_scene(agent_like: Any, make_publisher: Any) -> None:
         first.tick(t)
         second.tick(t)
     first.state(4, "F3.1", since_s_ago=60.0 - fault_at)
-    first.event(4, "F3.1", "NORMAL", t_s=fault_at + 0.6)
+    first.event(4, "F3.1", "NORMAL", t_s=fault_at + 0.6, ago_s=60.0 - fault_at - 0.6)
 
 
 def test_screenshot(

@@ -45,6 +45,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="ask each viewer for a broker user name and password before connecting",
     )
+    p.add_argument(
+        "--keepalive",
+        type=int,
+        default=20,
+        metavar="S",
+        help="MQTT keep-alive of the page's connection in seconds (default 20)",
+    )
     p.set_defaults(run=run)
 
 
@@ -54,6 +61,7 @@ def config_from_args(args: argparse.Namespace) -> DisplayConfig:
         topic_prefix=args.prefix,
         stale_after_s=args.stale_after,
         ask_credentials=args.ask_credentials,
+        keepalive_s=args.keepalive,
     )
 
 

@@ -20,10 +20,10 @@ import numpy as np
 from ...diagnosis.states import MotorState
 from ...errors import DataError
 from ...telemetry.table import TelemetryTable
-from .layout import HEXA_X, MotorPosition
+from .layout import FRAMES, HEXA_X, MotorPosition, layout_for_log
 from .server import state_kinds, static_text
 
-__all__ = ["StateTimeline", "hexaview_fragment", "state_timelines"]
+__all__ = ["StateTimeline", "hexaview_fragment", "hexaview_report_section", "state_timelines"]
 
 #: Per motor, the moments its announced state changed: ``[(time_s, label), ...]`` in time order.
 StateTimeline = Sequence[tuple[float, str]]
@@ -86,11 +86,13 @@ def hexaview_fragment(
     title: str = "Motor health during the flight",
     element_id: str | None = None,
     include_assets: bool = True,
+    note: str = "",
 ) -> str:
     """A ``<section>`` with the hexacopter view and a time slider over ``[t_start_s, t_end_s]``.
 
     ``timelines``: motor number → ``[(time_s, state label), ...]`` change points (see
     :func:`state_timelines`). Before its first change point a motor shows "no data yet".
+    ``initial_t_s``: where the slider starts (default ``t_start_s``); ``note``: a line under the title.
     ``include_assets=False`` leaves out the inlined JS/CSS when a page holds several fragments (they are
     guarded, so including them twice is harmless too).
     """
@@ -126,7 +128,9 @@ def hexaview_fragment(
             f"<script>{static_text('hexaview-replay.js')}</script>\n"
         )
     return (
-        f'<section class="mmh-replay-section">\n<h2>{html.escape(title)}</h2>\n{assets}'
+        f'<section class="mmh-replay-section">\n<h2>{html.escape(title)}</h2>\n'
+        + (f'<p class="mmh-replay-note">{html.escape(note)}</p>\n' if note else "")
+        + f"{assets}"
         f'<div class="mmh-replay" id="{root}">\n'
         '<div class="mmh-replay-controls">'
         '<button type="button" class="mmh-replay-prev" title="previous state change">&#9664; change</button>'
@@ -136,4 +140,35 @@ def hexaview_fragment(
         '<div class="mmh-replay-view"></div>\n<ul class="mmh-replay-motors"></ul>\n</div>\n'
         f'<script type="application/json" id="{root}-data">{_script_json(data)}</script>\n'
         f'<script>MmhHexaReplay.mount("{root}");</script>\n</section>\n'
+    )
+
+
+def hexaview_report_section(
+    result: TelemetryTable,
+    meta: Mapping[str, Any],
+    *,
+    t_start_s: float | None = None,
+    t_end_s: float | None = None,
+) -> str:
+    """The view for a replayed log's report: frame from the log, slider starting at the first fault.
+
+    ``result`` is the diagnosed table (with ``announced``), ``meta`` the log's table meta. When no top view
+    fits the vehicle, a short paragraph says why instead.
+    """
+    timelines = state_timelines(result)
+    frame, note = layout_for_log(meta, sorted(timelines))
+    if frame is None:
+        return f'<section class="mmh-replay-section"><p class="meta">No top view: {html.escape(note)}.</p></section>\n'
+    kinds = state_kinds()
+    onsets = [
+        t for rows in timelines.values() for t, label in rows if kinds[label]["kind"] in ("fault", "sensor")
+    ]
+    return hexaview_fragment(
+        timelines,
+        t_start_s=t_start_s,
+        t_end_s=t_end_s,
+        initial_t_s=min(onsets) if onsets else None,
+        layout=FRAMES[frame],
+        title=f"The {frame} at any moment of the flight (announced state)",
+        note=note,
     )

@@ -8,16 +8,19 @@ adds the motors as ``{angle, yaw factor, testing order}``::
     motor 3  -30°  CW       motor 6 -150°  CW
 
 The angle is measured from the nose, positive towards the right wing (clockwise seen from above);
-``AP_MOTORS_MATRIX_YAW_FACTOR_CW`` marks a propeller that turns clockwise seen from above.
+``AP_MOTORS_MATRIX_YAW_FACTOR_CW`` marks a propeller that turns clockwise seen from above. Hexa-plus
+(FRAME_TYPE 0, what ArduPilot SITL's ``--model hexa`` flies) and quad-X come from the same source; PX4's
+quad-X numbering is the same as ArduPilot's.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
-__all__ = ["FRAMES", "HEXA_X", "MotorPosition"]
+__all__ = ["ARDUPILOT_FRAMES", "FRAMES", "HEXA_PLUS", "HEXA_X", "QUAD_X", "MotorPosition", "layout_for_log"]
 
 
 @dataclass(frozen=True)
@@ -54,5 +57,53 @@ HEXA_X: tuple[MotorPosition, ...] = (
     MotorPosition(6, -150.0, "CW", 4),
 )
 
+#: ArduPilot hexa-plus (MOTOR_FRAME_HEXA / MOTOR_FRAME_TYPE_PLUS).
+HEXA_PLUS: tuple[MotorPosition, ...] = (
+    MotorPosition(1, 0.0, "CW", 1),
+    MotorPosition(2, 180.0, "CCW", 4),
+    MotorPosition(3, -120.0, "CW", 5),
+    MotorPosition(4, 60.0, "CCW", 2),
+    MotorPosition(5, -60.0, "CCW", 6),
+    MotorPosition(6, 120.0, "CW", 3),
+)
+
+#: ArduPilot quad-X (MOTOR_FRAME_QUAD / MOTOR_FRAME_TYPE_X).
+QUAD_X: tuple[MotorPosition, ...] = (
+    MotorPosition(1, 45.0, "CCW", 1),
+    MotorPosition(2, -135.0, "CCW", 3),
+    MotorPosition(3, -45.0, "CW", 4),
+    MotorPosition(4, 135.0, "CW", 2),
+)
+
 #: Frame names as the agent announces them in ``mmh/<vehicle>/info`` → layout.
-FRAMES: dict[str, tuple[MotorPosition, ...]] = {"hexa-x": HEXA_X}
+FRAMES: dict[str, tuple[MotorPosition, ...]] = {"hexa-x": HEXA_X, "hexa-plus": HEXA_PLUS, "quad-x": QUAD_X}
+
+#: ArduPilot (FRAME_CLASS, FRAME_TYPE) → frame name.
+ARDUPILOT_FRAMES: dict[tuple[int, int], str] = {(2, 1): "hexa-x", (2, 0): "hexa-plus", (1, 1): "quad-x"}
+
+
+def layout_for_log(meta: Mapping[str, Any], motors: Sequence[int]) -> tuple[str | None, str]:
+    """The frame to draw a log's motors on, and a note when it is a guess (or none fits).
+
+    ArduPilot logs say their frame (``FRAME_CLASS``/``FRAME_TYPE`` parameters in ``meta["params"]``);
+    otherwise six motors are drawn as hexa-X and four as quad-X, and the note says so.
+    """
+    params = meta.get("params") or {}
+    vehicle = meta.get("vehicle") or {}
+    frame_class = params.get("FRAME_CLASS", vehicle.get("frame_class"))
+    frame_type = params.get("FRAME_TYPE", vehicle.get("frame_type"))
+    if frame_class is not None and frame_type is not None:
+        try:
+            key = (int(frame_class), int(frame_type))
+        except (TypeError, ValueError):
+            key = (-1, -1)
+        name = ARDUPILOT_FRAMES.get(key)
+        if name is not None and set(motors) <= {m.number for m in FRAMES[name]}:
+            return name, ""
+        return None, f"FRAME_CLASS {frame_class} / FRAME_TYPE {frame_type} has no top view here"
+    count = max(motors, default=0)
+    if count in (5, 6):
+        return "hexa-x", "the log does not name its frame: drawn as ArduPilot hexa-X"
+    if count in (3, 4):
+        return "quad-x", "the log does not name its frame: drawn as quad-X"
+    return None, f"no top view for a vehicle with {count} motors"

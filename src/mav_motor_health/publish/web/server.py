@@ -86,6 +86,7 @@ class DisplayConfig:
     chart_window_s: float = 60.0
     default_ws_port: int = 9001
     ask_credentials: bool = False
+    keepalive_s: int = 20
 
     def __post_init__(self) -> None:
         if self.broker_ws_url is not None:
@@ -113,6 +114,10 @@ class DisplayConfig:
             raise ConfigError(
                 "stale_after_s and chart_window_s must be positive", expected="a number of seconds > 0"
             )
+        if not 2 <= self.keepalive_s <= 3600:
+            raise ConfigError(
+                f"keep-alive {self.keepalive_s} s out of range", key="keepalive_s", expected="2..3600"
+            )
         if not 0 < self.default_ws_port < 65536:
             raise ConfigError(f"port {self.default_ws_port} out of range", expected="1..65535")
 
@@ -126,6 +131,7 @@ class DisplayConfig:
             "chart_window_s": self.chart_window_s,
             "default_ws_port": self.default_ws_port,
             "ask_credentials": self.ask_credentials,
+            "keepalive_s": self.keepalive_s,
             "default_frame": "hexa-x",
             "layouts": {name: [m.to_dict() for m in layout] for name, layout in FRAMES.items()},
             "states": state_kinds(),

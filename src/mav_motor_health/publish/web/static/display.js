@@ -33,9 +33,30 @@
       this.selected = new URLSearchParams(location.search).get("vehicle");
       this.connectedAtMs = null;
       this.dirty = true;
-      this.layout = cfg.layouts[cfg.default_frame];
-      this.view = MmhHexaView.create($("hexaview"), {layout: this.layout, states: cfg.states});
       $("chart-window").textContent = String(cfg.chart_window_s);
+      this.frame = null;
+      this.setFrame(cfg.default_frame);
+    }
+
+    /* The frame a vehicle announces in its info topic, if this page can draw it. */
+    frameOf(v) {
+      const announced = v && v.info && v.info.frame;
+      return announced && this.cfg.layouts[announced] ? announced : this.cfg.default_frame;
+    }
+
+    /* (Re)build the top view and the motor cards for a frame. */
+    setFrame(frame) {
+      if (frame === this.frame) {
+        return;
+      }
+      this.frame = frame;
+      this.layout = this.cfg.layouts[frame];
+      $("hexaview").textContent = "";
+      $("hexaview").dataset.frame = frame;
+      this.view = MmhHexaView.create($("hexaview"), {layout: this.layout, states: this.cfg.states, title: frame + " top view, nose up"});
+      for (const old of $("motor-cards").querySelectorAll(".motor-card")) {
+        old.remove();
+      }
       this.cards = new Map();
       for (const m of [...this.layout].sort((a, b) => a.motor - b.motor)) {
         this.cards.set(m.motor, this.makeCard(m));
@@ -53,6 +74,7 @@
     start() {
       this.client = new MmhMqttSubscriber(this.brokerUrl(), {
         topics: [this.prefix + "/#"],
+        keepaliveS: this.cfg.keepalive_s,
         onMessage: (topic, payload, retained) => this.onMessage(topic, payload, retained),
         onStatus: (state, detail) => this.onStatus(state, detail),
       });
@@ -73,8 +95,12 @@
       }
       this.client.stopped = false;
       setInterval(() => this.render(), 1000);
-      const frame = () => {
-        if (this.dirty) {
+      // Redraw when something changed, at most five times a second: telemetry of many vehicles
+      // must not keep a field laptop's CPU busy.
+      let lastRenderMs = 0;
+      const frame = (nowMs) => {
+        if (this.dirty && nowMs - lastRenderMs >= 200) {
+          lastRenderMs = nowMs;
           this.render();
         }
         requestAnimationFrame(frame);
@@ -229,7 +255,7 @@
         return "nodata";
       }
       let worst = "waiting";
-      for (const m of this.layout) {
+      for (const m of this.cfg.layouts[this.frameOf(v)]) {
         const k = this.motorView(v, m.motor, null, now).kind;
         if (KIND_RANK[k] > KIND_RANK[worst]) {
           worst = k;
@@ -290,7 +316,11 @@
       this.dirty = false;
       const now = Date.now();
       this.renderPicker(now);
+      // The tab title tells of a fault on any vehicle, even while the window is in the background.
+      const faulty = [...this.vehicles.values()].filter((veh) => this.worstKind(veh, now) === "fault").map((veh) => veh.id);
+      document.title = faulty.length ? `FAULT ${faulty.sort().join(", ")} — Motor health` : "Motor health";
       const v = this.selected ? this.vehicles.get(this.selected) : null;
+      this.setFrame(this.frameOf(v));
       $("vehicle-name").textContent = v ? v.id : "";
       if (!v) {
         this.view.setNoData("no vehicle on the broker yet");

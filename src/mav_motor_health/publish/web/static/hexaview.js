@@ -78,7 +78,7 @@
     const uid = "mmh-hv-" + ++instances;
     const svg = el("svg", {
       class: "mmh-hv",
-      viewBox: "-235 -228 470 470",
+      viewBox: "-235 -240 470 482",
       role: "img",
       "aria-label": opts.title || "motor health, top view, nose up",
     });
@@ -90,7 +90,12 @@
     );
     el("path", {d: "M0,0 L10,5 L0,10 z", class: "mmh-hv-arrowhead"}, marker);
 
-    text(svg, 0, -210, "mmh-hv-front", "▲ FRONT");
+    // A motor on the nose (plus frames) takes the top centre: the FRONT mark then goes to the corner.
+    const noseMotor = layout.some((m) => Math.abs(m.angle_deg) < 20);
+    const front = text(svg, noseMotor ? -228 : 0, -210, "mmh-hv-front", "▲ FRONT");
+    if (noseMotor) {
+      front.setAttribute("text-anchor", "start");
+    }
     const arms = el("g", {class: "mmh-hv-arms"}, svg);
     const motorsGroup = el("g", {class: "mmh-hv-motors"}, svg);
     const motors = {};
@@ -118,7 +123,8 @@
       );
       text(g, x, y - 6, "mmh-hv-number", String(m.motor));
       const label = text(g, x, y + 24, "mmh-hv-state", "—");
-      const sinceY = m.angle_deg > 95 || m.angle_deg < -95 ? y + DISC_RADIUS + 30 : y + DISC_RADIUS + 26;
+      // Under the disc, unless the arm runs there (a motor near the nose): then above it.
+      const sinceY = Math.abs(m.angle_deg) < 20 ? y - DISC_RADIUS - 16 : y + DISC_RADIUS + (Math.abs(m.angle_deg) > 95 ? 30 : 26);
       const since = text(g, x, sinceY, "mmh-hv-since", "");
       motors[m.motor] = {group: g, label: label, since: since, title: title, spin: m.spin};
     }
@@ -127,7 +133,7 @@
     el("path", {d: "M0,-30 L16,8 L0,0 L-16,8 z", class: "mmh-hv-nose"}, svg);
 
     const overlay = el("g", {class: "mmh-hv-overlay", visibility: "hidden"}, svg);
-    el("rect", {x: -235, y: -228, width: 470, height: 470, class: "mmh-hv-overlay-bg"}, overlay);
+    el("rect", {x: -235, y: -240, width: 470, height: 482, class: "mmh-hv-overlay-bg"}, overlay);
     text(overlay, 0, -8, "mmh-hv-overlay-title", "NO DATA");
     const overlayReason = text(overlay, 0, 24, "mmh-hv-overlay-reason", "");
 
