@@ -37,6 +37,9 @@ STATE_COLOURS = {
     MotorState.UNKNOWN: "#455a64",
     MotorState.NO_DATA: "#bdbdbd",
     MotorState.SENSOR_FAULT: "#f9a825",
+    MotorState.SLOW: "#ad1457",
+    MotorState.STALLED: "#b71c1c",
+    MotorState.FAST: "#ff8f00",
 }
 WIDTH = 900
 LEFT = 64

@@ -15,6 +15,7 @@ the live agent feeding one sample at a time gets the very same numbers.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,7 +106,7 @@ def first_order_response(
 
 def estimate_inertia(
     params: MotorParams,
-    runs: list[tuple[ArrayLike, ArrayLike, ArrayLike]],
+    runs: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike]],
     candidates_kg_m2: ArrayLike | None = None,
 ) -> float | None:
     """The rotor + propeller inertia that best explains how speed follows a moving input.
