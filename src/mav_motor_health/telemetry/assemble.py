@@ -106,8 +106,10 @@ def motor_table(
         if len(series[0]):
             t, v = _sorted_series(series)
             columns[name] = hold_previous(t, v, time_s, CONTEXT_MAX_AGE_S)
-    table = TelemetryTable(columns, source=str(path), meta=dict(meta))
-    return table.sorted_by_motor_time()
+    order = np.lexsort((columns["time_s"], columns["motor"]))
+    if not np.all(order[1:] > order[:-1]):
+        columns = {name: values[order] for name, values in columns.items()}
+    return TelemetryTable(columns, source=str(path), meta=dict(meta))
 
 
 def no_esc_error(path: Path, fmt: str, counts: Mapping[str, int], wanted: str) -> DataError:
