@@ -48,18 +48,9 @@ __all__ = [
     "replay_many",
 ]
 
-#: Context columns copied into diagnosis.csv when the log has them.
-CONTEXT_COLUMNS = (
-    "throttle",
-    "bus_voltage_v",
-    "esc_temp_c",
-    "battery_voltage_v",
-    "battery_current_a",
-    "alt_m",
-    "climb_m_s",
-    "air_temp_c",
-    "armed",
-)
+#: Columns copied into diagnosis.csv besides the diagnosis itself when the log has them: the two the
+#: motor voltage comes from (voltage_v = throttle × bus_voltage_v).
+CONTEXT_COLUMNS = ("throttle", "bus_voltage_v")
 #: A motor whose samples lack speed or current this often is reported as NO_DATA.
 NO_DATA_SHARE = 0.5
 #: A motor whose telemetry ends this long before the others' is reported as NO_DATA (telemetry lost).

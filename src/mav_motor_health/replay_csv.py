@@ -38,15 +38,16 @@ def fixed_point_bytes(values: NDArray, decimals: int) -> NDArray[np.uint8]:
     rest = whole.copy()
     for k in range(width_int):
         col = width_int - k
-        digit = rest % 10
-        out[:, col] = np.where((k == 0) | (rest > 0), 48 + digit, 0)
-        rest //= 10
+        rest, digit = np.divmod(rest, 10)
+        out[:, col] = 48 + digit
+        if k > 0:
+            out[(rest == 0) & (digit == 0), col] = 0  # a leading zero
     if decimals:
         point = width_int + 1
         rest = frac.copy()
         for k in range(decimals):
-            out[:, point + decimals - k] = 48 + rest % 10
-            rest //= 10
+            rest, digit = np.divmod(rest, 10)
+            out[:, point + decimals - k] = 48 + digit
         trailing = np.ones(len(v), dtype=bool)
         for col in range(point + decimals, point, -1):
             trailing &= out[:, col] == 48

@@ -130,16 +130,30 @@ def _runs(t: NDArray[np.float64], codes: NDArray[np.int64], t_end: float) -> lis
     return out
 
 
+def _per_pixel(
+    axes: _Axes, t: NDArray[np.float64], codes: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """One state per horizontal pixel (the highest code in it: faults and missing data stay visible)."""
+    pixels = WIDTH - LEFT - RIGHT
+    if len(t) <= pixels:
+        return t, codes
+    bins = np.clip(((t - axes.t0) / (axes.t1 - axes.t0) * pixels).astype(np.int64), 0, pixels - 1)
+    first = np.flatnonzero(np.diff(bins, prepend=-1) != 0)
+    return t[first], np.maximum.reduceat(codes, first)
+
+
 def _ribbon(
     axes: _Axes, t: NDArray[np.float64], codes: NDArray[np.int64], y: float, h: float, t_end: float
 ) -> str:
     rects = []
+    t, codes = _per_pixel(axes, t, codes)
     runs = _runs(t, codes, t_end)
-    min_px = (axes.t1 - axes.t0) / (WIDTH - LEFT - RIGHT) * 0.5
-    for start, stop, code in runs:
-        if stop - start < min_px and code == MotorState.NORMAL:
-            continue
-        x0, x1 = axes.x(np.array([start, stop]))
+    if not runs:
+        return ""
+    starts = np.array([r[0] for r in runs])
+    stops = np.array([r[1] for r in runs])
+    x0s, x1s = axes.x(starts).tolist(), axes.x(stops).tolist()
+    for (start, stop, code), x0, x1 in zip(runs, x0s, x1s):
         rects.append(
             f'<rect x="{x0:.1f}" y="{y:.1f}" width="{max(x1 - x0, 0.6):.1f}" height="{h}" '
             f'fill="{STATE_COLOURS[MotorState(code)]}"><title>{MotorState(code).label} '
@@ -330,8 +344,8 @@ def render_report(
         rib.append(f'<text x="{LEFT - 6}" y="14" text-anchor="end">state</text>')
         rib.append(_ribbon(axes, t, result["state"][sel].astype(np.int64), 3, 14, t1))
         rib.append(f'<text x="{LEFT - 6}" y="33" text-anchor="end">steady</text>')
-        steady = result["steady"][sel].astype(np.int64)
-        for start, stop, code in _runs(t, steady, t1):
+        t_steady, steady = _per_pixel(axes, t, result["steady"][sel].astype(np.int64))
+        for start, stop, code in _runs(t_steady, steady, t1):
             if code:
                 x0, x1 = axes.x(np.array([start, stop]))
                 rib.append(
