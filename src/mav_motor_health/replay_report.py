@@ -289,22 +289,6 @@ def render_report(
     out.append("".join(svg))
     out.append(_legend())
 
-    if events:
-        out.append(
-            f"<h2>Events ({len(events)})</h2><table><tr><th>time [s]</th><th>motor</th><th>from</th>"
-            "<th>to</th><th>ω / model [rad/s]</th><th>i / model [A]</th></tr>"
-        )
-        for e in list(events)[:200]:
-            ev = e["evidence"]
-            out.append(
-                f"<tr><td>{e['time_s']:.2f}</td><td>{e['motor']}</td><td>{_badge(e['previous'])}</td>"
-                f"<td>{_badge(e['state'])}</td><td>{_fmt(ev['omega_rad_s'])} / {_fmt(ev['omega_model_rad_s'])}</td>"
-                f"<td>{_fmt(ev['current_a'])} / {_fmt(ev['current_model_a'])}</td></tr>"
-            )
-        out.append("</table>")
-        if len(events) > 200:
-            out.append(f"<p class='meta'>… {len(events) - 200} more in events.jsonl</p>")
-
     out.append("<h2>Measured versus model, per motor</h2>")
     for v in verdicts:
         out.append(f"<h3>Motor {v.motor} — {_badge(v.state)} <span class='meta'>{_esc(v.reason)}</span></h3>")
@@ -353,6 +337,23 @@ def render_report(
                 )
         rib.append("</svg>")
         out.append("".join(rib))
+    if events:
+        out.append(
+            f"<h2>Events</h2><details><summary>{len(events)} changes of announced state (also in "
+            "events.jsonl)</summary><table><tr><th>time [s]</th><th>motor</th><th>from</th>"
+            "<th>to</th><th>ω / model [rad/s]</th><th>i / model [A]</th></tr>"
+        )
+        for e in list(events)[:200]:
+            ev = e["evidence"]
+            out.append(
+                f"<tr><td>{e['time_s']:.2f}</td><td>{e['motor']}</td><td>{_badge(e['previous'])}</td>"
+                f"<td>{_badge(e['state'])}</td><td>{_fmt(ev['omega_rad_s'])} / {_fmt(ev['omega_model_rad_s'])}</td>"
+                f"<td>{_fmt(ev['current_a'])} / {_fmt(ev['current_model_a'])}</td></tr>"
+            )
+        out.append("</table></details>")
+        if len(events) > 200:
+            out.append(f"<p class='meta'>… {len(events) - 200} more in events.jsonl</p>")
+
     out.append(_legend())
     out.append(
         f"<p class='meta'>Bands: speed ±{profile.speed_band_rad_s:.0f} rad/s around the model; current ± the profile's half-width at the "
