@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
-from numpy.typing import NDArray
 
 from .diagnosis.pipeline import DIAGNOSIS_COLUMNS, diagnose
 from .diagnosis.profile import ThresholdProfile
@@ -49,18 +48,9 @@ __all__ = [
     "replay_many",
 ]
 
-#: Context columns copied into diagnosis.csv when the log has them.
-CONTEXT_COLUMNS = (
-    "throttle",
-    "bus_voltage_v",
-    "esc_temp_c",
-    "battery_voltage_v",
-    "battery_current_a",
-    "alt_m",
-    "climb_m_s",
-    "air_temp_c",
-    "armed",
-)
+#: Columns copied into diagnosis.csv besides the diagnosis itself when the log has them: the two the
+#: motor voltage comes from (voltage_v = throttle × bus_voltage_v).
+CONTEXT_COLUMNS = ("throttle", "bus_voltage_v")
 #: A motor whose samples lack speed or current this often is reported as NO_DATA.
 NO_DATA_SHARE = 0.5
 #: A motor whose telemetry ends this long before the others' is reported as NO_DATA (telemetry lost).
@@ -282,37 +272,21 @@ def _check_out_dir(out_dir: Path, force: bool) -> None:
 
 
 def write_diagnosis_csv(result: TelemetryTable, path: Path) -> None:
-    """diagnosis.csv, built column-wise with numpy (fast enough for hour-long logs at 100 Hz per motor).
+    """diagnosis.csv: time to the µs, other numbers to 4 decimals, states as labels (``F3.1``)."""
+    from .replay_csv import Column, write_csv_columns
 
-    Each column's distinct values are formatted once (flight logs repeat values a lot) and the lines are
-    joined with object-array additions, so Python formats thousands of numbers, not millions.
-    """
+    labels = [s.label for s in MotorState]
     extra = [c for c in CONTEXT_COLUMNS if c in result]
-    names = [*DIAGNOSIS_COLUMNS, *extra]
-    lines: NDArray[Any] | None = None
-    for name in names:
-        text = _text_column(result[name], name)
-        lines = text if lines is None else lines + "," + text
-    with path.open("w", encoding="utf-8", newline="") as handle:
-        handle.write(",".join(names) + "\n")
-        if lines is not None and len(lines):
-            handle.write("\n".join(lines.tolist()))
-            handle.write("\n")
-
-
-def _text_column(values: NDArray[Any], name: str) -> NDArray[Any]:
-    """A column as an object array of strings: state labels, integers, or numbers (time with 10
-    significant digits: µs at an hour's time; measurements with 7); NaN as an empty cell."""
-    if name in ("state", "announced"):
-        labels = np.array([s.label for s in MotorState], dtype=object)
-        return labels[np.asarray(values, dtype=np.int64)]
-    if name in ("motor", "steady"):
-        uniq, inverse = np.unique(np.asarray(values, dtype=np.int64), return_inverse=True)
-        return np.array([str(u) for u in uniq.tolist()] or [""], dtype=object)[inverse.ravel()]
-    uniq, inverse = np.unique(np.asarray(values, dtype=float), return_inverse=True)
-    spec = ".10g" if name == "time_s" else ".7g"  # measurements: float32 in most logs
-    texts = [format(u, spec) if math.isfinite(u) else "" for u in uniq.tolist()]
-    return np.array(texts or [""], dtype=object)[inverse.ravel()]
+    columns: list[Column] = []
+    for name in [*DIAGNOSIS_COLUMNS, *extra]:
+        values = result[name]
+        if name in ("state", "announced"):
+            columns.append((name, values, labels))
+        elif name in ("motor", "steady"):
+            columns.append((name, values.astype(np.int64), 0))
+        else:
+            columns.append((name, values, 6 if name == "time_s" else 4))
+    write_csv_columns(path, columns)
 
 
 def replay_log(
@@ -343,13 +317,8 @@ def replay_log(
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if len(table) == 0:
         raise DataError("the log's ESC telemetry has no samples for any motor", path=log)
-    bar.update(1, 4, "diagnosing")
-    motors = table.motors()
-    parts = []
-    for k, motor in enumerate(motors):
-        parts.append(diagnose(table.for_motor(motor), params, profile))
-        bar.update(1, 4, f"diagnosing motor {k + 1}/{len(motors)}")
-    result = TelemetryTable.concat(parts)
+    bar.update(1, 4, f"diagnosing {len(table.motors())} motors")
+    result = diagnose(table, params, profile)  # the same core the live agent runs
     expected = [int(m) for m in table.meta.get("motors", [])]
     verdicts = motor_verdicts(result, expected)
     events = events_from_diagnosis(result)

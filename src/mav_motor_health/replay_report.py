@@ -134,16 +134,30 @@ def _runs(t: NDArray[np.float64], codes: NDArray[np.int64], t_end: float) -> lis
     return out
 
 
+def _per_pixel(
+    axes: _Axes, t: NDArray[np.float64], codes: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """One state per horizontal pixel (the highest code in it: faults and missing data stay visible)."""
+    pixels = WIDTH - LEFT - RIGHT
+    if len(t) <= pixels:
+        return t, codes
+    bins = np.clip(((t - axes.t0) / (axes.t1 - axes.t0) * pixels).astype(np.int64), 0, pixels - 1)
+    first = np.flatnonzero(np.diff(bins, prepend=-1) != 0)
+    return t[first], np.maximum.reduceat(codes, first)
+
+
 def _ribbon(
     axes: _Axes, t: NDArray[np.float64], codes: NDArray[np.int64], y: float, h: float, t_end: float
 ) -> str:
     rects = []
+    t, codes = _per_pixel(axes, t, codes)
     runs = _runs(t, codes, t_end)
-    min_px = (axes.t1 - axes.t0) / (WIDTH - LEFT - RIGHT) * 0.5
-    for start, stop, code in runs:
-        if stop - start < min_px and code == MotorState.NORMAL:
-            continue
-        x0, x1 = axes.x(np.array([start, stop]))
+    if not runs:
+        return ""
+    starts = np.array([r[0] for r in runs])
+    stops = np.array([r[1] for r in runs])
+    x0s, x1s = axes.x(starts).tolist(), axes.x(stops).tolist()
+    for (start, stop, code), x0, x1 in zip(runs, x0s, x1s):
         rects.append(
             f'<rect x="{x0:.1f}" y="{y:.1f}" width="{max(x1 - x0, 0.6):.1f}" height="{h}" '
             f'fill="{STATE_COLOURS[MotorState(code)]}"><title>{MotorState(code).label} '
@@ -281,22 +295,6 @@ def render_report(
     # The display's top view with a time slider (inline script and styles, nothing fetched).
     out.append(hexaview_report_section(result, meta, t_start_s=t0, t_end_s=t1))
 
-    if events:
-        out.append(
-            f"<h2>Events ({len(events)})</h2><table><tr><th>time [s]</th><th>motor</th><th>from</th>"
-            "<th>to</th><th>ω / model [rad/s]</th><th>i / model [A]</th></tr>"
-        )
-        for e in list(events)[:200]:
-            ev = e["evidence"]
-            out.append(
-                f"<tr><td>{e['time_s']:.2f}</td><td>{e['motor']}</td><td>{_badge(e['previous'])}</td>"
-                f"<td>{_badge(e['state'])}</td><td>{_fmt(ev['omega_rad_s'])} / {_fmt(ev['omega_model_rad_s'])}</td>"
-                f"<td>{_fmt(ev['current_a'])} / {_fmt(ev['current_model_a'])}</td></tr>"
-            )
-        out.append("</table>")
-        if len(events) > 200:
-            out.append(f"<p class='meta'>… {len(events) - 200} more in events.jsonl</p>")
-
     out.append("<h2>Measured versus model, per motor</h2>")
     for v in verdicts:
         out.append(f"<h3>Motor {v.motor} — {_badge(v.state)} <span class='meta'>{_esc(v.reason)}</span></h3>")
@@ -336,8 +334,8 @@ def render_report(
         rib.append(f'<text x="{LEFT - 6}" y="14" text-anchor="end">state</text>')
         rib.append(_ribbon(axes, t, result["state"][sel].astype(np.int64), 3, 14, t1))
         rib.append(f'<text x="{LEFT - 6}" y="33" text-anchor="end">steady</text>')
-        steady = result["steady"][sel].astype(np.int64)
-        for start, stop, code in _runs(t, steady, t1):
+        t_steady, steady = _per_pixel(axes, t, result["steady"][sel].astype(np.int64))
+        for start, stop, code in _runs(t_steady, steady, t1):
             if code:
                 x0, x1 = axes.x(np.array([start, stop]))
                 rib.append(
@@ -345,6 +343,23 @@ def render_report(
                 )
         rib.append("</svg>")
         out.append("".join(rib))
+    if events:
+        out.append(
+            f"<h2>Events</h2><details><summary>{len(events)} changes of announced state (also in "
+            "events.jsonl)</summary><table><tr><th>time [s]</th><th>motor</th><th>from</th>"
+            "<th>to</th><th>ω / model [rad/s]</th><th>i / model [A]</th></tr>"
+        )
+        for e in list(events)[:200]:
+            ev = e["evidence"]
+            out.append(
+                f"<tr><td>{e['time_s']:.2f}</td><td>{e['motor']}</td><td>{_badge(e['previous'])}</td>"
+                f"<td>{_badge(e['state'])}</td><td>{_fmt(ev['omega_rad_s'])} / {_fmt(ev['omega_model_rad_s'])}</td>"
+                f"<td>{_fmt(ev['current_a'])} / {_fmt(ev['current_model_a'])}</td></tr>"
+            )
+        out.append("</table></details>")
+        if len(events) > 200:
+            out.append(f"<p class='meta'>… {len(events) - 200} more in events.jsonl</p>")
+
     out.append(_legend())
     out.append(
         f"<p class='meta'>Bands: speed ±{profile.speed_band_rad_s:.0f} rad/s around the model; current ± the profile's half-width at the "

@@ -71,12 +71,21 @@ def motor_table(
     dropped). ``commands`` maps a motor number to its throttle series. Where the ESC reports no voltage
     (0 or NaN), the battery voltage stands in for ``bus_voltage_v``.
     """
-    motor = np.array([motor_of_slot.get(int(s)) or 0 for s in np.unique(esc.slot)], dtype=np.int64)
-    lookup = dict(zip(np.unique(esc.slot).tolist(), motor.tolist()))
-    motors = np.array([lookup[s] for s in esc.slot.tolist()], dtype=np.int64) if len(esc.slot) else motor
-    keep = motors > 0
+    slots = np.asarray(esc.slot, dtype=np.int64)
+    slot_motor = np.zeros(int(slots.max()) + 1 if len(slots) else 1, dtype=np.int64)
+    for slot in np.unique(slots).tolist():
+        slot_motor[slot] = motor_of_slot.get(int(slot)) or 0
+    motors_all = slot_motor[slots]
+    keep = np.flatnonzero(motors_all > 0)
+    # Rows ordered by motor, then time: logs write ESC samples in time order, so a stable sort by motor
+    # is enough; otherwise sort by both.
+    t_kept = esc.time_s[keep]
+    if len(t_kept) < 2 or np.all(np.diff(t_kept) >= 0):
+        keep = keep[np.argsort(motors_all[keep], kind="stable")]
+    else:
+        keep = keep[np.lexsort((t_kept, motors_all[keep]))]
     time_s = esc.time_s[keep]
-    motors = motors[keep]
+    motors = motors_all[keep]
     columns: dict[str, NDArray[Any]] = {
         "time_s": time_s,
         "motor": motors,
@@ -106,8 +115,7 @@ def motor_table(
         if len(series[0]):
             t, v = _sorted_series(series)
             columns[name] = hold_previous(t, v, time_s, CONTEXT_MAX_AGE_S)
-    table = TelemetryTable(columns, source=str(path), meta=dict(meta))
-    return table.sorted_by_motor_time()
+    return TelemetryTable(columns, source=str(path), meta=dict(meta))
 
 
 def no_esc_error(path: Path, fmt: str, counts: Mapping[str, int], wanted: str) -> DataError:
