@@ -20,17 +20,21 @@ from mav_motor_health.telemetry import sources
 from mav_motor_health.telemetry.bench import bench_format, read_bench
 from mav_motor_health.telemetry.csv import write_csv
 from mav_motor_health.telemetry.table import TelemetryTable
-from mav_motor_health.workbench import WorkbenchData, compare, explain, noise_floor
+from mav_motor_health.workbench import WorkbenchData, compare, explain, fit_base, noise_floor
 
 
-def test_strawson_reader_converts_electrical_rpm(bench_logs: Path) -> None:
+def test_strawson_reader_speed_is_mechanical_as_the_kv_rating_shows(bench_logs: Path) -> None:
     path = bench_logs / "strawson" / "rawdata" / "a1_11.csv"
     assert bench_format(path) == "strawson"
     table = sources.read(path)  # dispatched by content, not just by extension
-    assert table.meta["pole_pairs"] == 7
+    assert table.meta["pole_pairs"] == 1
     assert len(table) == 11
-    # Row 1: 3421 electrical RPM at 1050 µs, 11.09 V, 0.511 A.
-    assert table["omega_rad_s"][0] == pytest.approx(3421 / 7 * 2 * math.pi / 60)
+    # Row 1: 3421 RPM at 1050 µs, 11.09 V, 0.511 A.
+    assert table["omega_rad_s"][0] == pytest.approx(3421 * 2 * math.pi / 60)
+    assert read_bench(path, pole_pairs=7)["omega_rad_s"][0] == pytest.approx(3421 / 7 * 2 * math.pi / 60)
+    # The evidence: the back-EMF constant fitted with this reading matches the EMAX RS2205S's 2600 KV.
+    k_e = fit_base(WorkbenchData.from_table(table).usable()).params.k_e
+    assert k_e == pytest.approx(60 / (2 * math.pi * 2600), rel=0.2)
     assert table["throttle"][0] == pytest.approx(0.05)
     assert table["bus_voltage_v"][0] == pytest.approx(11.0911, abs=1e-3)
     assert "voltage_v" not in table  # the battery's voltage is not the motor's
@@ -52,7 +56,7 @@ def test_ctu_and_dtu_readers(bench_logs: Path) -> None:
 def test_reader_errors_name_the_file(tmp_path: Path) -> None:
     bogus = tmp_path / "notes.txt"
     bogus.write_text("hello\n", encoding="utf-8")
-    with pytest.raises(DataError, match="notes.txt"):
+    with pytest.raises(DataError, match=r"notes\.txt"):
         sources.read(bogus)
     damaged = tmp_path / "stand.txt"
     damaged.write_text(

@@ -4,8 +4,12 @@ Three public formats (see ``real_logs/MANIFEST.md``), recognised by their first 
 
 ``strawson``  RCbenchmark 1520 CSV (StrawsonDesign motor_propeller_testing): ``ESC signal (µs)``,
               ``Voltage (V)`` (battery), ``Current (A)`` (battery), ``Motor Electrical Speed (RPM)``.
-              Electrical RPM is mechanical RPM × pole pairs; the five-inch motors there are 12N14P,
-              7 pole pairs (``pole_pairs`` overrides it). The throttle is ``(µs − 1000)/1000``.
+              Despite its name, that column is read as *mechanical* RPM (``pole_pairs = 1``): the
+              back-EMF constant fitted from it matches the motors' KV ratings (e.g. a1, 2600 KV:
+              k_e 0.0032 fitted vs 0.0037 V·s/rad from KV; h3, 2400 KV: 0.0040 vs 0.0040), while
+              dividing by the 7 pole pairs of these 12N14P motors gives k_e seven times too large.
+              The RCbenchmark software converts with the pole count it is configured with; pass
+              ``pole_pairs`` for files recorded without that setting. Throttle = ``(µs − 1000)/1000``.
 ``ctu``       the CTU-MRS table extract (``motor,propeller,throttle_pct_assumed,...``): one group of rows
               per motor/propeller pair, numbered as motors 1..N in file order (``meta["motors"]`` names
               them); RPM is mechanical (BLHeli_32 telemetry), voltage and current are the battery's.
@@ -38,7 +42,7 @@ __all__ = ["BENCH_FORMATS", "bench_format", "read_bench"]
 BENCH_FORMATS = ("strawson", "ctu", "dtu")
 RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 GRAM_FORCE_N = 9.80665e-3
-STRAWSON_POLE_PAIRS = 7
+STRAWSON_POLE_PAIRS = 1  # the column is already mechanical RPM, see the module doc
 
 
 def _first_line(path: Path) -> str:
@@ -125,7 +129,7 @@ def _read_strawson(path: Path, pole_pairs: int) -> TelemetryTable:
     n = len(arr["time_s"])
     return TelemetryTable.from_columns(
         source=str(path),
-        meta={"format": "strawson", "pole_pairs": pole_pairs, "speed": "electrical RPM / pole pairs"},
+        meta={"format": "strawson", "pole_pairs": pole_pairs, "speed": "RPM column / pole_pairs"},
         time_s=arr["time_s"],
         motor=np.ones(n, dtype=int),
         omega_rad_s=arr["erpm"] / pole_pairs * RPM_TO_RAD_S,

@@ -33,6 +33,7 @@ FloatArray = NDArray[np.float64]
 VOLTAGE_BINS = 10
 TIME_SPANS = 10
 CONTEXT_BINS = 5
+REPORT_REGIONS = 15
 
 
 @dataclass(frozen=True)
@@ -141,10 +142,13 @@ class Comparison:
             lines.append(
                 f"where the error exceeds the noise floor ({len(fail)} of {len(self.regions)} regions):"
             )
-            for r in sorted(fail, key=lambda r: -max(r.ratio_omega, r.ratio_current)):
+            worst = sorted(fail, key=lambda r: -max(r.ratio_omega, r.ratio_current))
+            for r in worst[:REPORT_REGIONS]:
                 lines.append(
                     f"  {r.label():36s} n={r.n:5d}  speed {r.ratio_omega:5.2f}x  current {r.ratio_current:5.2f}x noise"
                 )
+            if len(worst) > REPORT_REGIONS:
+                lines.append(f"  ... and {len(worst) - REPORT_REGIONS} more (--json lists them all)")
         return "\n".join(lines)
 
 

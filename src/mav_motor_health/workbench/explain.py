@@ -38,6 +38,7 @@ TIE_FRACTION = 0.01
 TIE_SAMPLES = 2000
 MIN_DELTA_BIC = 10.0
 BLOCKS = 8
+MIN_SAMPLES = 10
 
 
 @dataclass(frozen=True)
@@ -170,6 +171,11 @@ def explain(
     defaults to the built-in and installed effects; those already in ``params`` stay in every candidate.
     """
     data = data.usable()
+    if len(data) < MIN_SAMPLES:
+        raise FitError(
+            f"{data.source or 'the data'}: {len(data)} usable samples; explain needs at least {MIN_SAMPLES} "
+            "(half of them are held out to score each effect). `compare` works on fewer."
+        )
     registry = dict(effects) if effects is not None else available_effects()
     if params is None:
         params = fit_base(data).params

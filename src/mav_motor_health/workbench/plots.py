@@ -36,7 +36,7 @@ def _new_file(path: Path, force: bool) -> Path:
 
 
 def plot_comparison(
-    comparison: Comparison, folder: str | Path, *, force: bool = False, max_points: int = 4000
+    comparison: Comparison, folder: str | Path, *, force: bool = False, max_points: int = 2000
 ) -> list[Path]:
     """Measured vs model against voltage and time, and residuals against every variable."""
     plt = _pyplot()
@@ -97,7 +97,7 @@ def plot_comparison(
     fig.suptitle("forward errors against every variable (dashed: ±1 σ noise floor)")
     fig.tight_layout()
     path = _new_file(folder / "residuals_vs_variables.png", True)
-    fig.savefig(path, dpi=80)
+    fig.savefig(path, dpi=60)
     plt.close(fig)
     written.append(path)
     return written
