@@ -212,6 +212,7 @@ class MavlinkLink:
                 conn.close()
 
     def _read_live(self) -> None:
+        _register_extra_messages()
         parser = mavlink2.MAVLink(None, 0, 0)
         parser.robust_parsing = True
         while not self._stop.is_set():
@@ -269,6 +270,7 @@ class MavlinkLink:
 
     def _read_tlog(self) -> None:
         """A .tlog: 8-byte big-endian µs timestamp, then one MAVLink 1 or 2 frame."""
+        _register_extra_messages()
         parser = mavlink2.MAVLink(None, 0, 0)
         parser.robust_parsing = True
         path = Path(self.url.device)
@@ -333,3 +335,10 @@ def _raw_write(conn: Any, frame: bytes) -> None:
         conn.port.sendall(frame)
     else:
         conn.write(frame)
+
+
+def _register_extra_messages() -> None:
+    """PX4's ESC_STATUS (missing from pymavlink's dialects) and our MOTOR_HEALTH become decodable."""
+    from ..publish import dialect
+
+    dialect.register(mavlink2)
