@@ -199,3 +199,47 @@ def mavproxy(tmp_path: Path) -> Iterator[MavproxyGcs]:
     gcs = MavproxyGcs(tmp_path)
     yield gcs
     gcs.close()
+
+
+class MavproxyRouter:
+    """MAVProxy forwarding between a vehicle (master, UDP in) and the agent (an --out UDP port)."""
+
+    def __init__(self, workdir: Path) -> None:
+        self.master_port = free_port(socket.SOCK_DGRAM)
+        self.out_port = free_port(socket.SOCK_DGRAM)
+        self.log = (workdir / "mavproxy-router.log").open("wb")
+        self.proc = subprocess.Popen(
+            [
+                sys.executable,
+                MAVPROXY,
+                f"--master=udpin:127.0.0.1:{self.master_port}",
+                f"--out=udp:127.0.0.1:{self.out_port}",
+                "--daemon",
+                "--non-interactive",
+                "--nowait",
+                f"--state-basedir={workdir}",
+            ],
+            cwd=workdir,
+            stdout=self.log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env={**os.environ, "MAVLINK20": "1"},
+        )
+
+    def close(self) -> None:
+        self.proc.send_signal(signal.SIGTERM)
+        try:
+            self.proc.wait(10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait(5)
+        self.log.close()
+
+
+@pytest.fixture
+def mavproxy_router(tmp_path: Path) -> Iterator[MavproxyRouter]:
+    if not os.path.exists(MAVPROXY):
+        pytest.fail(f"MAVProxy is not installed at {MAVPROXY}")
+    router = MavproxyRouter(tmp_path)
+    yield router
+    router.close()

@@ -212,7 +212,9 @@ class VehiclePeer:
         )
 
     def _emit_systime(self, now: float) -> None:
-        self._send(self.enc.system_time_encode(int(time.time() * 1e6), int((now - self.boot_s) * 1000)))
+        self._send(
+            self.enc.system_time_encode(int(time.time() * 1e6), max(0, int((now - self.boot_s) * 1000)))
+        )
 
     def _emit_sys(self, now: float) -> None:
         self._send(
@@ -224,7 +226,9 @@ class VehiclePeer:
 
     def _emit_servo(self, now: float) -> None:
         pwm = [self._pwm() if n <= self.motors else 0 for n in range(1, 9)]
-        self._send(self.enc.servo_output_raw_encode(int((now - self.boot_s) * 1e6) & 0xFFFFFFFF, 0, *pwm))
+        self._send(
+            self.enc.servo_output_raw_encode(max(0, int((now - self.boot_s) * 1e6)) & 0xFFFFFFFF, 0, *pwm)
+        )
 
     def _motor_truth(self, motor: int) -> tuple[float, float]:
         with self.lock:

@@ -103,7 +103,7 @@ def test_the_dialect_xml_is_valid_and_its_states_are_the_motor_states():
         if e.get("name", "").startswith("MOTOR_HEALTH_STATE_")
     }
     assert entries == {int(s): "MOTOR_HEALTH_STATE_" + s.name for s in MotorState}
-    message = tree.getroot().find("messages/message")
+    message = tree.getroot().find("messages/message[@name='MOTOR_HEALTH']")
     assert message is not None and int(message.get("id")) == dialect.MOTOR_HEALTH_ID
     assert re.fullmatch(r"[A-Z_]+", message.get("name"))
 

@@ -1,12 +1,13 @@
 """The MAVLink link: pymavlink as a bytes-to-messages parser and encoder, behind threads.
 
 :class:`MavlinkLink` is an async context manager that owns two threads: a reader that waits on the
-transport's file descriptor (``select`` with a short timeout), parses bytes into messages and hands each
-one to the event loop with ``loop.call_soon_threadsafe``; and a writer that drains an outgoing queue, so a
-slow serial port or a full TCP buffer never stalls the loop. Transports come from pymavlink's
-``mavutil`` (serial, ``udpin:``, ``udpout:``, ``tcp:``, ``tcpin:``) used for their bytes only; parsing
-and encoding use one MAVLink 2 ``ardupilotmega`` object each. A broken transport is closed and reopened
-with back-off by the reader thread; the loop only sees messages stop and start again.
+transport's file descriptor (``select`` with a short timeout), parses bytes into messages and hands them
+to the event loop in batches with ``loop.call_soon_threadsafe`` (at most one wake-up per ``deliver_s``,
+10 ms; every message keeps its own arrival time); and a writer that drains an outgoing queue, so a slow
+serial port or a full TCP buffer never stalls the loop. Transports come from pymavlink's ``mavutil``
+(serial, ``udpin:``, ``udpout:``, ``tcp:``, ``tcpin:``) used for their bytes only; parsing and encoding
+use one MAVLink 2 ``ardupilotmega`` object each. A broken transport is closed and reopened with back-off
+by the reader thread; the loop only sees messages stop and start again.
 
 A ``.tlog`` path is a transport too (replay through the live path): its records' own timestamps become
 the messages' times, and the reader waits for the loop instead of dropping messages.
@@ -20,6 +21,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 import queue
 import select
 import struct
@@ -108,10 +110,12 @@ class MavlinkLink:
         source_system: int = 1,
         source_component: int = mavlink2.MAV_COMP_ID_ONBOARD_COMPUTER,
         reconnect_s: float = 1.0,
+        deliver_s: float = 0.01,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.url = parse_url(url)
         self.reconnect_s = reconnect_s
+        self.deliver_s = deliver_s
         self.clock = clock
         self._frames: queue.Queue[bytes | None] = queue.Queue(maxsize=1000)
         self.mav = mavlink2.MAVLink(_QueueWriter(self._frames), source_system, source_component)
@@ -201,7 +205,9 @@ class MavlinkLink:
 
         if self.url.kind == "serial":
             return mavutil.mavlink_connection(self.url.device, baud=self.url.baud, autoreconnect=True)
-        return mavutil.mavlink_connection(self.url.device, retries=0, autoreconnect=False)
+        return mavutil.mavlink_connection(
+            self.url.device, retries=0, autoreconnect=False, reconnect_delay=0.1
+        )
 
     def _close_conn(self) -> None:
         with self._conn_lock:
@@ -212,9 +218,16 @@ class MavlinkLink:
                 conn.close()
 
     def _read_live(self) -> None:
+        _register_extra_messages()
         parser = mavlink2.MAVLink(None, 0, 0)
         parser.robust_parsing = True
+        pending: list[Received] = []
+        deliver_at = math.inf
         while not self._stop.is_set():
+            if pending and self.clock() >= deliver_at:
+                # one wake-up of the loop per `deliver_s`, not one per datagram (CPU on a small computer)
+                self._deliver(pending)
+                pending, deliver_at = [], math.inf
             if self._conn is None:
                 try:
                     conn = self._open()
@@ -230,7 +243,8 @@ class MavlinkLink:
                 log.info("MAVLink %s: open", self.url)
             conn = self._conn
             try:
-                ready, _, _ = select.select([conn.fd], [], [], 0.2)
+                wait_s = 0.2 if not pending else max(0.0, deliver_at - self.clock())
+                ready, _, _ = select.select([conn.fd], [], [], wait_s)
                 if not ready:
                     continue
                 data = _raw_recv(conn)
@@ -249,7 +263,11 @@ class MavlinkLink:
             now = self.clock()
             msgs = self._parse(parser, data)
             if msgs:
-                self._deliver([Received(now, msg) for msg in msgs])
+                if not pending:
+                    deliver_at = now + self.deliver_s
+                pending.extend(Received(now, msg) for msg in msgs)
+        if pending:
+            self._deliver(pending)
 
     def _parse(self, parser: Any, data: bytes | str) -> list[Any]:
         if isinstance(data, str):
@@ -269,6 +287,7 @@ class MavlinkLink:
 
     def _read_tlog(self) -> None:
         """A .tlog: 8-byte big-endian µs timestamp, then one MAVLink 1 or 2 frame."""
+        _register_extra_messages()
         parser = mavlink2.MAVLink(None, 0, 0)
         parser.robust_parsing = True
         path = Path(self.url.device)
@@ -333,3 +352,10 @@ def _raw_write(conn: Any, frame: bytes) -> None:
         conn.port.sendall(frame)
     else:
         conn.write(frame)
+
+
+def _register_extra_messages() -> None:
+    """PX4's ESC_STATUS (missing from pymavlink's dialects) and our MOTOR_HEALTH become decodable."""
+    from ..publish import dialect
+
+    dialect.register(mavlink2)

@@ -6,7 +6,7 @@ battery voltage, the autopilot's parameters) and turns each ESC telemetry messag
 mapping, the PWM range and what the motor sees are :mod:`mav_motor_health.telemetry.mavlink_esc`'s.
 ArduPilot keeps repeating an ESC's last values when its telemetry stops; once an ESC's packet ``count``
 has been seen to advance, a slot whose count did not advance is skipped, so a silent ESC yields no samples
-(and the monitor declares it ``NO_DATA``). No I/O here: messages are anything with pymavlink's attributes
+(and the monitor declares it ``NO_DATA``); an all-zero slot is an ESC that never reported. No I/O here: messages are anything with pymavlink's attributes
 and ``get_type()``.
 """
 
@@ -173,6 +173,7 @@ class SampleAssembler:
             for j, motor in enumerate(motors)
             if motor is not None
             and 1 <= motor <= self.motors
+            and not (counts is not None and counts[j] == 0 and not (rpm[j] or voltage_cv[j] or current_ca[j]))
             and not (counts is not None and self._repeated(motor, counts[j]))
         ]
         if not slots:

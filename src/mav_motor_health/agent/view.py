@@ -35,14 +35,17 @@ class StateView:
         self.live = live
         self.title = title
         self._lines = 0
+        self.origin_s: float | None = None  # link time shown as 0 (the first change seen)
 
     def change(self, change: StateChange, vehicle_time_s: float | None = None) -> None:
         """One line per change of state (when not redrawing)."""
         if self.live:
             return
         ev = change.evidence
+        if self.origin_s is None:
+            self.origin_s = change.time_s
         self.stream.write(
-            f"t={change.time_s:10.3f}s motor {change.motor}: {change.previous.label} -> {change.state.label}"
+            f"t={change.time_s - self.origin_s:9.3f} s motor {change.motor}: {change.previous.label} -> {change.state.label}"
             f" ({change.state.description}) omega {_fmt(ev.get('omega_rad_s'), '.0f')}"
             f"/{_fmt(ev.get('omega_model_rad_s'), '.0f')} rad/s current {_fmt(ev.get('current_a'), '.2f')}"
             f"/{_fmt(ev.get('current_model_a'), '.2f')} A\n"

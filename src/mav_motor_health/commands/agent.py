@@ -10,6 +10,8 @@ import sys
 
 from ..agent.app import run_agent
 from ..agent.config import load_agent_config
+from ..agent.demo import parse_fault, run_with_sim
+from ..errors import ConfigError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -21,10 +23,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "and MQTT. Options override the --config file.",
     )
     p.add_argument("--config", metavar="FILE", help="agent TOML (see params/agent.example.toml)")
-    p.add_argument(
+    where = p.add_mutually_exclusive_group()
+    where.add_argument(
         "--connect",
         metavar="URL",
         help="MAVLink: /dev/serial0:921600, udpin:0.0.0.0:14550, udpout:HOST:PORT, tcp:HOST:PORT or a .tlog",
+    )
+    where.add_argument(
+        "--sim",
+        nargs="?",
+        const="flight/healthy_calm",
+        metavar="SCENARIO",
+        help="run against the simulated hexacopter in this process (default scenario flight/healthy_calm)",
+    )
+    p.add_argument(
+        "--fault", metavar="F@T:M", help="with --sim: inject e.g. F3.1@20:3 (fault at 20 s on motor 3)"
     )
     p.add_argument("--mqtt", metavar="URL", help="broker: mqtt://[user:pass@]host[:port] or mqtts://...")
     p.add_argument("--params", metavar="FILE", help="motor parameters TOML or a name in params/motors")
@@ -53,13 +66,21 @@ def setup_logging(verbose: bool) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.fault and not args.sim:
+        raise ConfigError("--fault needs --sim", key="--fault", expected="--sim [SCENARIO] --fault F3.1@20:3")
     config = load_agent_config(
         args.config,
-        connect=args.connect,
+        connect=args.connect or ("udpin:127.0.0.1:14550" if args.sim else None),
         mqtt_url=args.mqtt,
         params=args.params,
         profile=args.profile,
         vehicle_id=args.vehicle_id,
     )
     setup_logging(args.verbose)
+    live_view = sys.stdout.isatty() if args.tui is None else args.tui
+    if live_view and sys.stderr.isatty() and not args.verbose:
+        logging.getLogger().setLevel(logging.ERROR)  # the table shows the states; log lines would scroll it
+    if args.sim:
+        fault = parse_fault(args.fault) if args.fault else None
+        return asyncio.run(run_with_sim(config, args.sim, fault, tui=args.tui))
     return asyncio.run(run_agent(config, tui=args.tui))

@@ -1,5 +1,8 @@
 """The ``mav_motor_health`` MAVLink dialect (``mav_motor_health.xml``): the MOTOR_HEALTH message.
 
+It also carries common.xml's ESC_STATUS (291, PX4's ESC telemetry) verbatim, because the dialects shipped
+with pymavlink 2.4.50 lack it; :func:`register` adds it to a dialect module only where it is missing.
+
 :func:`load` runs pymavlink's own generator (``mavgen``, Python 3, MAVLink 2) on the shipped XML into a
 private temporary folder once per process and imports the result, so the package ships the definition,
 never generated code that could drift from it. :func:`register` teaches a pymavlink dialect module
@@ -18,10 +21,11 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-__all__ = ["MOTOR_HEALTH_ID", "XML_PATH", "load", "register"]
+__all__ = ["ESC_STATUS_ID", "MOTOR_HEALTH_ID", "XML_PATH", "load", "register"]
 
 XML_PATH = Path(__file__).resolve().parent / "mav_motor_health.xml"
 MOTOR_HEALTH_ID = 54100
+ESC_STATUS_ID = 291
 
 
 @functools.lru_cache(maxsize=1)
@@ -45,6 +49,7 @@ def load() -> ModuleType:
 
 
 def register(dialect_module: Any) -> None:
-    """Let a pymavlink dialect module decode MOTOR_HEALTH (adds it to the module's ``mavlink_map``)."""
+    """Let a pymavlink dialect module decode MOTOR_HEALTH, and ESC_STATUS if it lacks it (its ``mavlink_map``)."""
     generated = load()
     dialect_module.mavlink_map[MOTOR_HEALTH_ID] = generated.MAVLink_motor_health_message
+    dialect_module.mavlink_map.setdefault(ESC_STATUS_ID, generated.MAVLink_esc_status_message)
