@@ -94,56 +94,177 @@ def follow_chain(
     n = len(starts)
     if n == 0:
         return np.zeros(0, dtype=np.int64)
-    follows = np.zeros(n, dtype=bool)
-    follows[:-1] = next_starts[:-1] == starts[1:]
-    # run_end[i]: the last index of the run of consecutive "follows" starting at i.
-    breaks = np.flatnonzero(~follows)
-    run_end_of = breaks[np.searchsorted(breaks, np.arange(n))]
-    pieces: list[NDArray[np.int64]] = []
+    # Successor of every candidate, found for all at once: its index, or END / BROKEN / CUT.
+    end, broken, cut = -2, -1, -3
+    k = np.searchsorted(starts, next_starts)
+    k_safe = np.minimum(k, n - 1)
+    succ = np.where(starts[k_safe] == next_starts, k_safe, broken)
+    succ[next_starts == size] = end
+    succ[next_starts > size] = cut
+    paths = _RunPaths(succ)
+    chain = _Chain()
+    undone: set[int] = set()
     i = first
-    if i > 0 and n:
+    if i > 0:
         damage.add(0, int(starts[i]))
-    jumped_from = -1  # the record whose successor was reached by jumping over false candidates
-    while i < n:
-        j = int(run_end_of[i])
-        nxt = int(next_starts[j])
-        pieces.append(np.arange(i, j + 1, dtype=np.int64))
-        if nxt == size:
+    while 0 <= i < n:
+        path = paths.path_from(i)  # the walk itself, vectorised
+        chain.extend(path)
+        i = int(succ[path[-1]])
+        if i == end:
             break
-        if nxt < size:
-            k = int(np.searchsorted(starts, nxt))
-            if k < n and starts[k] == nxt:
-                # False candidates (sync bytes inside payloads) sat between j and its successor.
-                jumped_from, i = j, k
-                continue
-        # The chain is broken after record j. If j was reached by a jump and is followed by nothing,
-        # the jump itself was wrong (a damaged length landed on a false candidate): undo it.
-        resync_from = j
-        if jumped_from >= 0 and pieces[-1][0] == i and len(pieces[-1]) <= 2 and jumped_from < i:
-            damage.bad_records += len(pieces.pop())
-            resync_from = jumped_from
-        jumped_from = -1
-        k = int(np.searchsorted(starts, starts[resync_from], side="right"))
-        while k < n and not accept(k):
-            k += 1
-        last = int(pieces[-1][-1]) if pieces and len(pieces[-1]) else -1
-        claimed = int(next_starts[last]) if last >= 0 else 0
-        if k >= n:
-            if claimed > size and last >= 0:  # the last record is cut short
-                pieces[-1] = pieces[-1][:-1]
-                damage.truncated_at = int(starts[last])
+        last = chain.last()
+        resync_from = last
+        if i == cut and not any(accept(q) for q in range(last + 1, min(last + 64, n))):
+            chain.drop(1)  # the last record is cut short: the log was truncated
+            damage.truncated_at = int(starts[last])
+            break
+        # The chain is broken after ``last``. If ``last`` came right after a jump over candidates and the
+        # jump target is followed by at most one record, the jump may have been a damaged length landing
+        # on a false candidate: undo it once and resynchronise from the record before it.
+        tail = chain.tail(3)
+        if last not in undone and len(tail) >= 2:
+            if tail[-1] != tail[-2] + 1:
+                undone.add(last)
+                resync_from = tail[-2]
+                chain.drop(1)
+            elif len(tail) == 3 and tail[-2] != tail[-3] + 1:
+                undone.add(last)
+                resync_from = tail[-3]
+                chain.drop(2)
+        claimed = int(next_starts[chain.last()]) if len(chain) else 0
+        k_next = int(np.searchsorted(starts, starts[resync_from], side="right"))
+        while k_next < n and not accept(k_next):
+            k_next += 1
+        if k_next >= n:
+            if len(chain) and claimed > size:
+                damage.truncated_at = int(starts[chain.last()])
+                chain.drop(1)
             elif size - claimed > tail_slack:
                 damage.add(claimed, size - claimed)
             break
-        damage.add(min(claimed, int(starts[k])), max(int(starts[k]) - claimed, 0))
-        if last >= 0 and starts[k] < claimed:
+        damage.add(min(claimed, int(starts[k_next])), max(int(starts[k_next]) - claimed, 0))
+        if len(chain) and starts[k_next] < claimed:
             # the last record overlaps the next good one: its own length field was damaged; drop it.
-            pieces[-1] = pieces[-1][:-1]
+            chain.drop(1)
             damage.bad_records += 1
-        i = k
-    if not pieces:
-        return np.zeros(0, dtype=np.int64)
-    return np.concatenate(pieces)
+        i = k_next
+    return chain.array()
+
+
+class _Chain:
+    """The records kept so far, as numpy pieces (appending 457 k Python ints would be slow)."""
+
+    def __init__(self) -> None:
+        self.pieces: list[NDArray[np.int64]] = []
+        self.size = 0
+
+    def __len__(self) -> int:
+        return self.size
+
+    def extend(self, piece: NDArray[np.int64]) -> None:
+        self.pieces.append(piece)
+        self.size += len(piece)
+
+    def last(self) -> int:
+        return int(self.pieces[-1][-1])
+
+    def tail(self, k: int) -> list[int]:
+        out: list[int] = []
+        for piece in reversed(self.pieces):
+            out = piece[-(k - len(out)) :].tolist() + out
+            if len(out) >= k:
+                break
+        return out
+
+    def drop(self, k: int) -> None:
+        while k > 0 and self.pieces:
+            take = min(k, len(self.pieces[-1]))
+            self.pieces[-1] = self.pieces[-1][: len(self.pieces[-1]) - take]
+            self.size -= take
+            k -= take
+            if len(self.pieces[-1]) == 0:
+                self.pieces.pop()
+
+    def array(self) -> NDArray[np.int64]:
+        return np.concatenate(self.pieces) if self.pieces else np.zeros(0, dtype=np.int64)
+
+
+class _RunPaths:
+    """Paths through a successor table where most nodes are followed by the next one (``succ[i] = i+1``).
+
+    Runs of such nodes are collapsed into one node each (every jump target starts a run), paths are found
+    on the runs with :class:`_Paths`, and expanded back: the cost follows the number of irregularities
+    (false candidates, breaks), not the number of records.
+    """
+
+    def __init__(self, succ: NDArray[np.int64]) -> None:
+        n = len(succ)
+        idx = np.arange(n)
+        consecutive = succ[:-1] == idx[:-1] + 1
+        is_start = np.ones(n, dtype=bool)
+        is_start[1:] = ~consecutive
+        # a node that is a jump target (reached from a node other than its predecessor) starts a run
+        from_elsewhere = np.zeros(n, dtype=bool)
+        sources = np.flatnonzero(succ >= 0)
+        far = sources[succ[sources] != sources + 1]
+        from_elsewhere[succ[far]] = True
+        is_start |= from_elsewhere
+        self.run_start = np.flatnonzero(is_start)
+        self.run_end = np.append(self.run_start[1:] - 1, n - 1)
+        self.run_of = np.cumsum(is_start) - 1
+        last_succ = succ[self.run_end]
+        run_succ = np.where(last_succ >= 0, self.run_of[np.maximum(last_succ, 0)], last_succ)
+        self.paths = _Paths(run_succ)
+
+    def path_from(self, first: int) -> NDArray[np.int64]:
+        run = int(self.run_of[first])
+        runs = self.paths.path_from(run)
+        starts = self.run_start[runs].copy()
+        starts[0] = first
+        ends = self.run_end[runs]
+        lengths = ends - starts + 1
+        offsets = np.repeat(starts - np.concatenate([[0], np.cumsum(lengths)[:-1]]), lengths)
+        return np.arange(int(lengths.sum()), dtype=np.int64) + offsets
+
+
+class _Paths:
+    """Paths through a successor table, vectorised with pointer doubling.
+
+    Every node's distance to the end of its path is found for all nodes at once (list ranking); a node
+    lies on the path from ``first`` iff jumping ``distance(first) − distance(node)`` steps from ``first``
+    lands on it. Successors always lie after their node (records follow each other in the file), so a
+    path is the sorted set of its nodes, and only the nodes between ``first`` and its path's end are tested.
+    """
+
+    def __init__(self, succ: NDArray[np.int64]) -> None:
+        n = len(succ)
+        self.sink = n
+        nxt = np.append(np.where(succ >= 0, succ, n), n)
+        depth = np.append((succ >= 0).astype(np.int64), 0)
+        self.jumps = [nxt]  # jumps[r][x]: the node 2**r steps after x
+        ptr = nxt
+        while not (ptr == n).all():
+            depth = depth + depth[ptr]
+            ptr = ptr[ptr]
+            self.jumps.append(ptr)
+        self.depth = depth
+
+    def _jump(self, start: NDArray[np.int64], steps: NDArray[np.int64]) -> NDArray[np.int64]:
+        pos = start.copy()
+        for r, table in enumerate(self.jumps):
+            bit = ((steps >> r) & 1).astype(bool)
+            if bit.any():
+                pos[bit] = table[pos[bit]]
+        return pos
+
+    def path_from(self, first: int) -> NDArray[np.int64]:
+        d0 = int(self.depth[first])
+        last = int(self._jump(np.array([first]), np.array([d0]))[0])
+        nodes = np.arange(first, last + 1, dtype=np.int64)
+        steps = d0 - self.depth[nodes]
+        nodes, steps = nodes[steps >= 0], steps[steps >= 0]
+        return nodes[self._jump(np.full(len(nodes), first, dtype=np.int64), steps) == nodes]
 
 
 def gather_rows(
@@ -161,7 +282,10 @@ def gather_rows(
     size = len(data)
     offsets = np.asarray(offsets, dtype=np.int64)
     if size >= width:
-        windows = np.lib.stride_tricks.sliding_window_view(np.asarray(data), width)
+        flat = np.asarray(data)
+        windows = np.lib.stride_tricks.as_strided(
+            flat, shape=(size - width + 1, width), strides=(flat.strides[0], flat.strides[0]), writeable=False
+        )
         inside = offsets + width <= size
         if inside.all():
             rows = windows[offsets]
@@ -197,18 +321,19 @@ _CRC_TABLE = _crc_table()
 def crc_x25_rows(rows: NDArray[np.uint8], lengths: NDArray[np.int64], extra: int) -> NDArray[np.uint16]:
     """X.25 (CRC-16/MCRF4XX) of each row's first ``lengths`` bytes followed by ``extra``: MAVLink's CRC.
 
-    Vectorised over rows: one table look-up per column, for all frames at once.
+    Vectorised over rows: rows of equal length are processed together, one table look-up per byte
+    column for all of them at once.
     """
-    n, width = rows.shape
-    crc = np.full(n, 0xFFFF, dtype=np.uint16)
+    out = np.zeros(len(rows), dtype=np.uint16)
     table = _CRC_TABLE
-    for col in range(width):
-        active = lengths > col
-        if not active.any():
-            break
-        step = (crc >> 8) ^ table[(crc ^ rows[:, col]) & 0xFF]
-        crc = np.where(active, step, crc).astype(np.uint16)
-    return ((crc >> 8) ^ table[(crc ^ np.uint16(extra)) & 0xFF]).astype(np.uint16)
+    for length in np.unique(lengths).tolist():
+        sel = np.flatnonzero(lengths == length)
+        block = rows[sel, :length].astype(np.uint16)
+        crc = np.full(len(sel), 0xFFFF, dtype=np.uint16)
+        for col in range(length):
+            crc = (crc >> 8) ^ table[(crc ^ block[:, col]) & 0xFF]
+        out[sel] = (crc >> 8) ^ table[(crc ^ np.uint16(extra)) & 0xFF]
+    return out
 
 
 def hold_previous(

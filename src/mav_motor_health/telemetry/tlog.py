@@ -159,6 +159,15 @@ def read_messages(
     cand = cand[cand + 10 <= size]
     if len(cand) == 0:
         raise LogFormatError("no MAVLink frame found: not a .tlog file", path=path, offset=0)
+    # Sync bytes inside payloads are weeded out before the walk: a real MAVLink 2 frame has no
+    # incompatibility flag but signing, and a real record's timestamp shares its top 16 bits (2**48 µs,
+    # nine years) with the log's other records.
+    top = (data[cand - 8].astype(np.int64) << 8) | data[cand - 7]
+    common = int(np.bincount(top).argmax())
+    plausible = ((top == common) | (top == common + 1)) & (
+        (data[cand] == 0xFE) | ((data[cand + 2] & 0xFE) == 0)
+    )
+    cand = cand[plausible]
     v2 = data[cand] == 0xFD
     plen = data[cand + 1].astype(np.int64)
     signed = v2 & ((data[cand + 2] & 1) != 0)
