@@ -175,7 +175,8 @@ class Publisher:
 
     def publish(self, topic: str, payload: dict[str, Any], *, retain: bool = False, qos: int = 0) -> None:
         info = self.client.publish(topic, json.dumps(payload), qos=qos, retain=retain)
-        info.wait_for_publish(timeout=5)
+        if qos > 0:  # acknowledged by the broker; QoS 0 keeps its order on the same connection anyway
+            info.wait_for_publish(timeout=5)
 
     def close(self) -> None:
         self.client.disconnect()
@@ -312,23 +313,29 @@ class AgentLike:
             qos=1,
         )
 
-    def telemetry(self, motor: int, t_s: float, voltage_v: float) -> None:
+    def telemetry(
+        self, motor: int, t_s: float, voltage_v: float, model: tuple[float, float] | None = None
+    ) -> None:
+        """One telemetry sample; ``model`` (speed, current) when the caller computed it already."""
         from mav_motor_health.model.equations import steady_state
         from mav_motor_health.sim.steady import faulty_steady_state
 
-        model = steady_state(self.params, voltage_v)
-        omega, current = faulty_steady_state(self.params, self.faults.get(motor, "NORMAL"), voltage_v)
+        if model is None:
+            s = steady_state(self.params, voltage_v)
+            model = (float(s.omega_rad_s), float(s.current_a))
+        fault = self.faults.get(motor, "NORMAL")
+        omega, current = model if fault == "NORMAL" else faulty_steady_state(self.params, fault, voltage_v)
         self.pub.publish(
             f"{self.base}/motor/{motor}/telemetry",
             {
                 "time_utc": utc(),
                 "t_s": round(t_s, 3),
                 "omega_rad_s": float(omega) + float(self.rng.uniform(-10, 10)),
-                "omega_model_rad_s": float(model.omega_rad_s),
+                "omega_model_rad_s": model[0],
                 "current_a": float(current) + float(self.rng.uniform(-0.15, 0.15)),
-                "current_model_a": float(model.current_a),
+                "current_model_a": model[1],
                 "voltage_v": voltage_v,
-                "raw_state": self.faults.get(motor, "NORMAL"),
+                "raw_state": fault,
                 "steady": True,
             },
         )
@@ -340,8 +347,15 @@ class AgentLike:
         return 7.0 + 1.2 * math.sin(t_s / 4.0) + 0.5 * math.sin(t_s / 1.3)
 
     def tick(self, t_s: float, motors: tuple[int, ...] = (1, 2, 3, 4, 5, 6)) -> None:
-        for m in motors:
-            self.telemetry(m, t_s, self.flight_voltage(t_s) + 0.1 * m)
+        """One sample of each motor; the model solved for all of them at once (vectorised)."""
+        import numpy as np
+
+        from mav_motor_health.model.equations import steady_state
+
+        volts = np.array([self.flight_voltage(t_s) + 0.1 * m for m in motors])
+        s = steady_state(self.params, volts)
+        for k, m in enumerate(motors):
+            self.telemetry(m, t_s, float(volts[k]), (float(s.omega_rad_s[k]), float(s.current_a[k])))
 
 
 @pytest.fixture

@@ -235,8 +235,8 @@
         }
       }
       if (vehicleNoData) {
-        out.kind = "nodata";
-        out.note = "no data";
+        out.kind = "nodata"; // the view's overlay says why; each motor need not repeat it
+        out.since = "";
       } else if (label === "NO_DATA") {
         out.note = "motor silent (agent)";
       } else if (m && m.lastTelemetryMs !== null && now - m.lastTelemetryMs > this.staleMs) {
@@ -364,7 +364,8 @@
       card.root.className = "motor-card kind-" + mv.kind;
       card.root.dataset.state = mv.state;
       card.state.textContent = mv.kind === "nodata" && mv.state !== "NO_DATA" ? "NO DATA" : MmhHexaView.stateText(mv.state);
-      card.desc.textContent = mv.kind === "nodata" ? `${mv.note}${mv.state ? " · last: " + mv.state : ""}` : mv.state === "NORMAL" ? "" : mv.description;
+      card.desc.textContent =
+        mv.kind === "nodata" ? `${mv.note || "no data"}${mv.state ? " · last: " + mv.state : ""}` : mv.state === "NORMAL" ? "" : mv.description;
       card.since.textContent = mv.since ? `since ${mv.sinceClock} (${mv.sinceDuration})` : "";
       const last = m && m.last;
       card.values.textContent = last

@@ -134,6 +134,7 @@
 
     const overlay = el("g", {class: "mmh-hv-overlay", visibility: "hidden"}, svg);
     el("rect", {x: -235, y: -240, width: 470, height: 482, class: "mmh-hv-overlay-bg"}, overlay);
+    el("rect", {x: -190, y: -62, width: 380, height: 106, rx: 14, class: "mmh-hv-overlay-box"}, overlay);
     text(overlay, 0, -8, "mmh-hv-overlay-title", "NO DATA");
     const overlayReason = text(overlay, 0, 24, "mmh-hv-overlay-reason", "");
 
