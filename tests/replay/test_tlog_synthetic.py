@@ -75,7 +75,8 @@ def test_mavlink1_mavlink2_and_signed_frames_decode_alike(synthetic_tlog: Path) 
     assert esc["rpm"][:, 0].tolist() == [1000 + 10 * k for k in range(30)]
     assert esc["temperature"][:, 2].tolist() == [32] * 30  # MAVLink 2 payloads end in zeros: padded back
     assert msgs.sysid["HEARTBEAT"].tolist() == [255, 1]
-    assert [p.split(b"\0")[0] for p in msgs["PARAM_VALUE"]["param_id"].tolist()][0] == b"SERVO1_FUNCTION"
+    names = [p.split(b"\0")[0] for p in msgs["PARAM_VALUE"]["param_id"].tolist()]
+    assert names == [b"SERVO1_FUNCTION", b"SERVO2_FUNCTION", b"SERVO3_FUNCTION", b"SERVO4_FUNCTION"]
     assert not msgs.damage
 
 
