@@ -23,6 +23,13 @@ COMMANDS = (
     "predict",
     "diagnose",
     "replay",
+    "compare",
+    "explain",
+    "agent",
+    "display",
+    "simulate",
+    "score",
+    "sim",
 )
 
 

@@ -1,4 +1,4 @@
-"""The replay report: one self-contained HTML page (inline CSS and SVG, no scripts, nothing fetched).
+"""The replay report: one self-contained HTML page (inline CSS, SVG and script, nothing fetched).
 
 A pilot reads, top to bottom: the verdict per motor, the fault timeline (announced state of every motor
 over the flight), then per motor the measured versus modelled speed and current with the tree's bands and
@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from .diagnosis.profile import ThresholdProfile
 from .diagnosis.states import MotorState
 from .model.params import MotorParams
+from .publish.web.hexaview import hexaview_report_section
 from .telemetry.table import TelemetryTable
 
 if TYPE_CHECKING:
@@ -36,6 +37,9 @@ STATE_COLOURS = {
     MotorState.UNKNOWN: "#455a64",
     MotorState.NO_DATA: "#bdbdbd",
     MotorState.SENSOR_FAULT: "#f9a825",
+    MotorState.SLOW: "#ad1457",
+    MotorState.STALLED: "#b71c1c",
+    MotorState.FAST: "#ff8f00",
 }
 WIDTH = 900
 LEFT = 64
@@ -288,6 +292,8 @@ def render_report(
     out.append("<h2>Fault timeline (announced state)</h2>")
     out.append("".join(svg))
     out.append(_legend())
+    # The display's top view with a time slider (inline script and styles, nothing fetched).
+    out.append(hexaview_report_section(result, meta, t_start_s=t0, t_end_s=t1))
 
     out.append("<h2>Measured versus model, per motor</h2>")
     for v in verdicts:

@@ -13,6 +13,11 @@
   (1 quad, 2 hexa, 3 octa, 4 octa-quad, 5 Y6, 7 tri, 12 dodeca-hexa, 14 deca).
 * Throttle is ``(pwm − MOT_PWM_MIN) / (MOT_PWM_MAX − MOT_PWM_MIN)``, clipped to 0..1. ArduPilot uses the
   throttle channel's range when MOT_PWM_MIN/MAX are 0; the defaults here are 1000 and 2000 µs.
+* What the motor sees (:func:`motor_inputs`): the ESC chops the bus voltage, so the motor's effective
+  voltage is ``throttle × bus_voltage_v`` and, power being conserved across the ESC, the motor current is
+  ``esc_current_a / throttle``. Below ``min_throttle`` the division is meaningless (current NaN).
+* PX4's ``ESC_STATUS`` (291) carries per ESC ``rpm`` [1/min], ``voltage`` [V] and ``current`` [A] as
+  floats, four ESCs per message from ``index``; ESC slot ``j`` is motor ``j+1`` by default.
 """
 
 from __future__ import annotations
@@ -23,8 +28,11 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..model.esc import DEFAULT_MIN_DUTY, motor_current_a, motor_voltage_v
+
 __all__ = [
     "ESC_TELEMETRY_MESSAGES",
+    "MIN_THROTTLE_FOR_CURRENT",
     "MOTOR_FUNCTION_FIRST",
     "PX4_MOTOR_FUNCTION_FIRST",
     "RPM_TO_RAD_S",
@@ -32,6 +40,7 @@ __all__ = [
     "expected_motors",
     "motor_for_output",
     "motor_for_px4_function",
+    "motor_inputs",
     "pwm_range",
     "throttle_from_pwm",
 ]
@@ -113,3 +122,21 @@ def esc_fields_to_si(
         "esc_current_a": np.asarray(current_ca, dtype=float) / 100.0,
         "omega_rad_s": np.asarray(rpm, dtype=float) * RPM_TO_RAD_S,
     }
+
+
+#: Below this command the ESC current says nothing about the motor current (see :func:`motor_inputs`).
+MIN_THROTTLE_FOR_CURRENT = DEFAULT_MIN_DUTY
+
+
+def motor_inputs(
+    throttle: ArrayLike,
+    bus_voltage_v: ArrayLike,
+    esc_current_a: ArrayLike,
+    min_throttle: float = MIN_THROTTLE_FOR_CURRENT,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Effective motor voltage [V] and motor current [A] from the command, bus voltage and ESC current.
+
+    The ESC as an ideal PWM stage (:mod:`..model.esc`): ``voltage_v = throttle × bus_voltage_v``;
+    ``current_a = esc_current_a / throttle`` (NaN where the throttle is below ``min_throttle`` or unknown).
+    """
+    return motor_voltage_v(throttle, bus_voltage_v), motor_current_a(esc_current_a, throttle, min_throttle)

@@ -12,9 +12,16 @@ __all__ = ["READERS", "read"]
 
 
 def _read_csv(path: Path) -> TelemetryTable:
+    from .bench import bench_format, read_bench
     from .csv import read_csv
 
-    return read_csv(path)
+    return read_bench(path) if bench_format(path) else read_csv(path)
+
+
+def _read_bench(path: Path) -> TelemetryTable:
+    from .bench import read_bench
+
+    return read_bench(path)
 
 
 def _read_tlog(path: Path) -> TelemetryTable:
@@ -41,6 +48,7 @@ READERS: dict[str, Callable[[Path], TelemetryTable]] = {
     ".tlog": _read_tlog,
     ".bin": _read_dataflash,
     ".ulg": _read_ulog,
+    ".txt": _read_bench,
 }
 
 
