@@ -98,6 +98,8 @@ def test_servo_functions_map_outputs_to_motors_and_repeats_are_stale(synthetic_t
     assert np.isnan(m3["omega_rad_s"][~fresh]).all() and np.isnan(m3["current_a"][~fresh]).all()
     np.testing.assert_allclose(m3["throttle"], 0.1)  # output 1: 1100 µs
     np.testing.assert_allclose(m1["throttle"], 0.3)  # output 3: 1300 µs
-    np.testing.assert_allclose(m1["current_a"][fresh], 3.0)
+    np.testing.assert_allclose(m1["esc_current_a"][fresh], 3.0)
+    np.testing.assert_allclose(m1["current_a"][fresh], 3.0 / 0.3)  # motor current: ESC current / duty
+    np.testing.assert_allclose(m1["voltage_v"], 0.3 * 16.1)
     np.testing.assert_allclose(m1["bus_voltage_v"], 16.1)
     assert (table["armed"] == 1).all()
