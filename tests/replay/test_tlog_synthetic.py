@@ -103,3 +103,34 @@ def test_servo_functions_map_outputs_to_motors_and_repeats_are_stale(synthetic_t
     np.testing.assert_allclose(m1["voltage_v"], 0.3 * 16.1)
     np.testing.assert_allclose(m1["bus_voltage_v"], 16.1)
     assert (table["armed"] == 1).all()
+
+
+def test_px4_esc_status_frames_from_pymavlink_generated_dialect(tmp_path: Path) -> None:
+    """ESC_STATUS (291) encoded by pymavlink's own generator from common.xml's definition (the project's
+    dialect carries it): PX4's per-ESC rpm, voltage and current as floats, four per message from ``index``."""
+    from mav_motor_health.publish import dialect
+
+    gen = dialect.load()
+    px4 = gen.MAVLink(None, srcSystem=1, srcComponent=1)
+    out = bytearray()
+    out += _record(0.0, mav2.MAVLink(None, 1, 1).heartbeat_encode(13, 12, 128, 0, 4).pack(px4))
+    for k in range(10):
+        t = 0.1 * (k + 1)
+        for index in (0, 4):
+            rpm = [2000 + 100 * (index + i) + k for i in range(4)]
+            msg = gen.MAVLink_esc_status_message(
+                index, int(t * 1e6), rpm, [22.0] * 4, [1.5 + index + i for i in range(4)]
+            )
+            out += _record(t + 0.001 * index, msg.pack(px4))
+    path = tmp_path / "px4.tlog"
+    path.write_bytes(bytes(out))
+    table = read_tlog(path)
+    assert table.motors() == [1, 2, 3, 4, 5, 6, 7, 8]
+    for motor in (1, 6):
+        rows = table.for_motor(motor)
+        np.testing.assert_allclose(
+            rows["omega_rad_s"], (2000 + 100 * (motor - 1) + np.arange(10)) * 2 * math.pi / 60
+        )
+        np.testing.assert_allclose(rows["esc_current_a"], 1.5 + motor - 1)
+        np.testing.assert_allclose(rows["bus_voltage_v"], 22.0)
+    assert table.meta["vehicle"]["autopilot"] == 12  # MAV_AUTOPILOT_PX4
