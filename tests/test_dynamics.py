@@ -66,3 +66,11 @@ def test_time_constant_of_the_paper_motor(paper_motor: MotorParams) -> None:
     assert tau[0] == pytest.approx(paper_motor.J_kg_m2 / (0.00975**2 / 0.165 + 1.275e-7), rel=1e-6)
     assert 0.01 < tau[1] < tau[0]
     assert np.isnan(time_constant_s(paper_motor.replace(J_kg_m2=None), 100.0))
+
+
+def test_undefined_start_recovers_at_the_first_finite_target() -> None:
+    t = np.arange(6) * 0.1
+    y, carry = first_order_response(t[:2], [np.nan, np.nan], 0.1)
+    assert np.isnan(y).all()
+    y2, _ = first_order_response(t[2:], [5.0, 5.0, 6.0, 6.0], 0.1, carry)
+    assert y2[0] == 5.0 and y2[1] == 5.0 and 5.0 < y2[2] < 6.0

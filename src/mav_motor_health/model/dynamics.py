@@ -55,8 +55,8 @@ def first_order_response(
 ) -> tuple[FloatArray, ResponseCarry]:
     """The target passed through a first-order lag with time constant ``tau_s`` (per sample).
 
-    The first sample ever (no carry) starts at its target. NaN targets hold the previous output; a NaN
-    time constant means no lag (output = target).
+    The first sample ever (no carry), and the first finite target after an undefined output, start at
+    the target. NaN targets hold the previous output; a NaN time constant means no lag (output = target).
     """
     t = np.asarray(time_s, dtype=float)
     x = np.asarray(target, dtype=float)
@@ -88,7 +88,7 @@ def first_order_response(
         if resets.size:
             end = start + 1 + int(resets[0])
         d = decay[start:end]
-        if not np.isfinite(d[0]) or d[0] >= _BLOCK_DECAY:
+        if not np.isfinite(d[0]) or d[0] >= _BLOCK_DECAY or not np.isfinite(y0):
             y0 = x[start] if np.isfinite(x[start]) else y0  # no lag (or no past): the target itself
             out[start] = y0
             start += 1
