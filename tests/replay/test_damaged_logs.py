@@ -111,8 +111,7 @@ def samples(
     log = read_records(part, ["FMT"], warn=False)
     fmt = tuple((int(o), int(o) + 89) for o in log.offsets["FMT"].tolist())
     lengths = {name: f.length for name, f in log.formats.items()}
-    out["bin"] = Sample(raw, records, lambda data, o, rec=records: 0, fmt, bin_records)
-    object.__setattr__(out["bin"], "span", _bin_span(records, lengths))
+    out["bin"] = Sample(raw, records, _bin_span(records, lengths), fmt, bin_records)
 
     raw = px4_esc_ulg.read_bytes()
     records = ulog_records(px4_esc_ulg)
