@@ -3,8 +3,8 @@
 For one log, :func:`replay_log` writes into its output folder:
 
 * ``diagnosis.csv`` — one row per motor sample: ``time_s, motor, state, announced, steady, omega_rad_s,
-  omega_model_rad_s, current_a, current_model_a, voltage_v`` (states as labels, ``F3.1``...) and the
-  context columns the log had (throttle, bus voltage, battery, altitude...);
+  omega_model_rad_s, current_a, current_model_a, voltage_v`` (states as labels, ``F3.1``...), then the
+  command and bus voltage the motor voltage came from;
 * ``events.jsonl`` — one JSON object per change of a motor's announced state, with the evidence;
 * ``report.html`` — one self-contained page: verdict per motor, fault timeline, measured vs model.
 
@@ -317,7 +317,8 @@ def replay_log(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         table = sources.read(log)
-    notes = tuple(str(w.message) for w in caught)
+    warned = tuple(str(w.message) for w in caught)
+    notes = warned
     if reissue_warnings:
         for w in caught:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
@@ -361,7 +362,7 @@ def replay_log(
         rows=len(result),
         verdicts=tuple(verdicts),
         events=tuple(events),
-        warnings=notes,
+        warnings=warned,
         elapsed_s=time.monotonic() - started,
     )
 
