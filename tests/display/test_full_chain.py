@@ -74,17 +74,22 @@ class VehicleAndAgent:
 def test_fault_injected_in_the_simulation_reaches_the_page(
     page: Any, display_for: Any, broker: Any, open_display: Any, free_port: Any
 ) -> None:
+    """Two simulated vehicles, each with its own agent, publishing at once; motor 4 of one fails."""
     server = display_for(broker, "mmh", stale_after_s=5.0)
     open_display(page, server)
     motor4 = page.locator('#hexaview .mmh-hv-motor[data-motor="4"]')
-    with VehicleAndAgent(free_port(), broker.mqtt_port, "sim-hexa") as chain:
-        # the agent announces the healthy motors (and publishes telemetry) through the broker
+    with (
+        VehicleAndAgent(free_port(), broker.mqtt_port, "sim-alpha") as alpha,
+        VehicleAndAgent(free_port(), broker.mqtt_port, "sim-bravo"),
+    ):
+        # both agents announce their healthy motors (and publish telemetry) through the broker
+        page.wait_for_selector('#vehicle-picker button[data-vehicle="sim-bravo"]', timeout=30_000)
+        page.click('#vehicle-picker button[data-vehicle="sim-alpha"]')
         page.wait_for_selector('#hexaview .mmh-hv-motor[data-motor="4"][data-state="NORMAL"]', timeout=30_000)
-        assert page.locator("#vehicle-name").inner_text() == "sim-hexa"
-        assert "hexa-x" in page.locator("#vehicle-summary").inner_text()
+        assert "sim-alpha · hexa-x" in page.locator("#vehicle-summary").inner_text()
         page.wait_for_selector('.motor-card[data-motor="4"] .values:has-text("rad/s")')  # telemetry
-        assert chain.vehicle is not None
-        chain.vehicle.inject("F3.1", 4)
+        assert alpha.vehicle is not None
+        alpha.vehicle.inject("F3.1", 4)
         page.wait_for_selector('#hexaview .mmh-hv-motor[data-motor="4"][data-state="F3.1"]', timeout=15_000)
         fill = page.eval_on_selector(
             '#hexaview .mmh-hv-motor[data-motor="4"] .mmh-hv-disc', "e => getComputedStyle(e).fill"
@@ -93,7 +98,16 @@ def test_fault_injected_in_the_simulation_reaches_the_page(
         assert "F3.1" in motor4.text_content()
         assert "propeller damage" in page.locator('.motor-card[data-motor="4"]').inner_text()
         page.wait_for_selector('#event-log td:has-text("→ F3.1")')
-        chain.stop_agent()
-    # the agent said goodbye: status offline, retained
-    page.wait_for_selector('#hexaview .mmh-hv-overlay[visibility="visible"]', timeout=10_000)
-    assert "offline" in page.locator("#hexaview .mmh-hv-overlay").text_content()
+        page.wait_for_selector('#vehicle-picker button[data-vehicle="sim-alpha"].kind-fault')
+        # the other vehicle's motor 4 is still healthy
+        page.click('#vehicle-picker button[data-vehicle="sim-bravo"]')
+        page.wait_for_selector('#hexaview .mmh-hv-motor[data-motor="4"][data-state="NORMAL"]')
+        assert page.locator("#vehicle-summary").inner_text().startswith("sim-bravo")
+        page.click('#vehicle-picker button[data-vehicle="sim-alpha"]')
+        page.wait_for_selector('#hexaview .mmh-hv-motor[data-motor="4"][data-state="F3.1"]')
+        alpha.stop_agent()
+        # alpha's agent said goodbye (status offline, retained) while bravo's still talks
+        page.wait_for_selector('#hexaview .mmh-hv-overlay[visibility="visible"]', timeout=10_000)
+        assert "offline" in page.locator("#hexaview .mmh-hv-overlay").text_content()
+        page.click('#vehicle-picker button[data-vehicle="sim-bravo"]')
+        page.wait_for_selector('#hexaview .mmh-hv-overlay[visibility="hidden"]', state="attached")
