@@ -24,9 +24,30 @@ def _read_bench(path: Path) -> TelemetryTable:
     return read_bench(path)
 
 
+def _read_tlog(path: Path) -> TelemetryTable:
+    from .tlog import read_tlog
+
+    return read_tlog(path)
+
+
+def _read_dataflash(path: Path) -> TelemetryTable:
+    from .dataflash import read_dataflash
+
+    return read_dataflash(path)
+
+
+def _read_ulog(path: Path) -> TelemetryTable:
+    from .ulog import read_ulog
+
+    return read_ulog(path)
+
+
 #: Reader per lower-case file extension. Log readers register here as they are added.
 READERS: dict[str, Callable[[Path], TelemetryTable]] = {
     ".csv": _read_csv,
+    ".tlog": _read_tlog,
+    ".bin": _read_dataflash,
+    ".ulg": _read_ulog,
     ".txt": _read_bench,
 }
 

@@ -1,0 +1,86 @@
+"""The agent against the simulated hexacopter in one process: ``mav-motor-health agent --sim``.
+
+The simulated vehicle (:class:`mav_motor_health.sim.live.SimVehicle`) streams over a loopback UDP port
+to the agent exactly as a flight controller would; a fault can be injected part-way (``F3.1@20:3``:
+propeller damage at 20 s of simulated time on motor 3).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import socket
+from dataclasses import dataclass, replace
+
+from ..errors import ConfigError
+from .app import run_agent
+from .config import AgentConfig
+
+__all__ = ["FaultPlan", "parse_fault", "run_with_sim"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class FaultPlan:
+    kind: str
+    at_s: float
+    motor: int
+
+
+def parse_fault(text: str) -> FaultPlan:
+    """``F3.1@20:3`` → propeller damage at 20 s (simulated time) on motor 3."""
+    kind, _, rest = text.partition("@")
+    when, _, motor = rest.partition(":")
+    try:
+        plan = FaultPlan(kind.strip().upper(), float(when or 0.0), int(motor or 1))
+    except ValueError:
+        raise ConfigError(
+            f"bad fault {text!r}", key="--fault", expected="FAULT@SECONDS:MOTOR, e.g. F3.1@20:3"
+        ) from None
+    if plan.kind not in ("F1.1", "F2.1", "F3.1", "F4.1", "F4.2") or not 1 <= plan.motor <= 12:
+        raise ConfigError(
+            f"bad fault {text!r}", key="--fault", expected="F1.1, F2.1, F3.1, F4.1 or F4.2 on motor 1-12"
+        )
+    return plan
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+async def run_with_sim(
+    config: AgentConfig,
+    scenario: str = "flight/healthy_calm",
+    fault: FaultPlan | None = None,
+    tui: bool | None = None,
+) -> int:
+    """Start the simulated hexacopter on a loopback port, then the agent on it, until SIGTERM/Ctrl-C."""
+    from ..sim.live import SimVehicle
+    from ..sim.scenario import load_scenario
+
+    logging.getLogger("mav_motor_health.sim").setLevel(logging.WARNING)  # it logs every message it receives
+    port = _free_udp_port()
+    config = replace(config, connect=f"udpin:127.0.0.1:{port}")
+    vehicle = SimVehicle(load_scenario(scenario), f"udpout:127.0.0.1:{port}")
+    await asyncio.to_thread(vehicle.start)
+
+    async def inject_later() -> None:
+        if fault is None:
+            return
+        while vehicle.sim_time_s < fault.at_s:
+            await asyncio.sleep(0.05)
+        vehicle.inject(fault.kind, fault.motor)
+        log.info("simulator: %s injected on motor %d at %.1f s", fault.kind, fault.motor, fault.at_s)
+
+    injector = asyncio.ensure_future(inject_later())
+    try:
+        return await run_agent(config, tui=tui)
+    finally:
+        injector.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await injector
+        await asyncio.to_thread(vehicle.stop)

@@ -1,0 +1,1 @@
+"""Scoring diagnoses against the simulator's ground truth."""

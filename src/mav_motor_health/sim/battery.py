@@ -1,0 +1,56 @@
+"""A LiPo battery: open-circuit voltage by state of charge, internal resistance, coulomb counting."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["Battery", "BatterySpec"]
+
+#: open-circuit voltage of one LiPo cell [V] at state of charge 0, 0.1, ..., 1.0
+_CELL_OCV_V = (3.27, 3.61, 3.69, 3.71, 3.73, 3.77, 3.79, 3.82, 3.87, 3.95, 4.20)
+
+
+@dataclass(frozen=True)
+class BatterySpec:
+    cells: int = 3
+    capacity_mah: float = 5000.0
+    #: internal resistance of the pack [Ω]; 0 with ``stiff`` = a lab supply at ``supply_v``
+    resistance_ohm: float = 0.02
+    initial_soc: float = 1.0
+    #: a stiff supply (the testbed's): constant voltage, no sag, no discharge
+    supply_v: float | None = None
+
+
+class Battery:
+    def __init__(self, spec: BatterySpec) -> None:
+        self.spec = spec
+        self.soc = spec.initial_soc
+        self.consumed_mah = 0.0
+        self.energy_wh = 0.0
+        self.current_a = 0.0
+        self.voltage_v = self.open_circuit_v()
+
+    def open_circuit_v(self) -> float:
+        if self.spec.supply_v is not None:
+            return self.spec.supply_v
+        soc = min(max(self.soc, 0.0), 1.0) * 10.0
+        k = min(int(soc), 9)
+        cell = _CELL_OCV_V[k] + (soc - k) * (_CELL_OCV_V[k + 1] - _CELL_OCV_V[k])
+        return self.spec.cells * cell
+
+    def step(self, current_a: float, dt: float) -> float:
+        """Draw ``current_a`` for ``dt`` seconds; returns the terminal voltage."""
+        self.current_a = current_a
+        if self.spec.supply_v is not None:
+            self.voltage_v = self.spec.supply_v
+        else:
+            self.voltage_v = max(self.open_circuit_v() - self.spec.resistance_ohm * current_a, 0.0)
+            used = current_a * dt / 3.6
+            self.consumed_mah += used
+            self.soc -= used / self.spec.capacity_mah
+        self.energy_wh += self.voltage_v * current_a * dt / 3600.0
+        return self.voltage_v
+
+    @property
+    def remaining_pct(self) -> int:
+        return round(100 * min(max(self.soc, 0.0), 1.0))

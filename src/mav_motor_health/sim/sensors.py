@@ -1,0 +1,132 @@
+"""ESC telemetry as real ESCs report it: each ESC on its own clock, noisy, quantised, with dropouts.
+
+* rate: each ESC reports at its own rate (drawn from ``rate_hz``, e.g. 10–50 Hz) with a clock error of
+  a few per cent, a random phase and jitter — the ESCs are not synchronised;
+* noise: speed uniform ±``speed_noise_rad_s`` (the paper's ±10 rad/s); current uniform with a half-width
+  growing with the input voltage from ±0.15 A at 4 V to ±1.0 A at 11 V (section III.B, the same
+  :class:`~mav_motor_health.sim.steady.SensorNoise` the steady-state tools use);
+* quantisation as MAVLink carries it: integer rpm, current in cA, voltage in cV, integer °C;
+* dropouts: single lost samples with probability ``dropout``, and rare bursts of ``burst_s`` seconds.
+
+The ESC reports its *input* current (``duty × motor current``); the motor current in the CSV is that
+divided by the duty, i.e. the same quantised reading.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .steady import SensorNoise
+
+__all__ = ["EscSample", "EscSensors", "SensorSpec"]
+
+RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    rate_hz: tuple[float, float] = (40.0, 40.0)
+    clock_error: float = 0.02
+    jitter: float = 0.05
+    speed_noise_rad_s: float = 10.0
+    current_noise_low_a: float = 0.15
+    current_noise_high_a: float = 1.0
+    dropout: float = 0.0
+    burst_per_hour: float = 0.0
+    burst_s: float = 1.0
+
+
+class EscSample(NamedTuple):
+    """One quantised ESC report (a named tuple: millions are made in a long flight)."""
+
+    time_s: float
+    motor: int
+    rpm: int
+    esc_current_ca: int
+    motor_current_ca: int
+    voltage_cv: int
+    temp_c: int
+    motor_temp_c: int
+    duty: float
+    count: int
+
+
+class EscSensors:
+    def __init__(self, spec: SensorSpec, n: int, rng: np.random.Generator) -> None:
+        self.spec, self.n, self.rng = spec, n, rng
+        lo, hi = spec.rate_hz
+        rates = rng.uniform(lo, hi, n) * (1.0 + rng.uniform(-spec.clock_error, spec.clock_error, n))
+        self.period_s = 1.0 / rates
+        self.next_s = rng.uniform(0.0, 1.0, n) * self.period_s
+        self.counts = np.zeros(n, dtype=np.int64)
+        self.noise = SensorNoise(
+            speed_rad_s=spec.speed_noise_rad_s,
+            current_low_a=spec.current_noise_low_a,
+            current_high_a=spec.current_noise_high_a,
+        )
+        self._burst_until = np.full(n, -1.0)
+        self._next_min_s = float(self.next_s.min())
+
+    def due(self, time_s: float) -> NDArray[np.bool_]:
+        return self.next_s <= time_s
+
+    def sample(
+        self,
+        time_s: float,
+        dt: float,
+        omega_rad_s: NDArray[np.float64],
+        motor_current_a: NDArray[np.float64],
+        duty: NDArray[np.float64],
+        bus_voltage_v: float,
+        esc_temp_c: NDArray[np.float64],
+        motor_temp_c: NDArray[np.float64],
+    ) -> list[EscSample]:
+        """Reports of every ESC whose clock ticked by ``time_s`` (call once per simulation step)."""
+        if time_s < self._next_min_s:
+            return []
+        due = np.flatnonzero(self.next_s <= time_s)
+        spec, rng = self.spec, self.rng
+        jitter = 1.0 + rng.uniform(-spec.jitter, spec.jitter, due.size)
+        self.next_s[due] += self.period_s[due] * jitter
+        behind = self.next_s[due] <= time_s  # a long step: do not report twice
+        self.next_s[due[behind]] = time_s + self.period_s[due[behind]]
+        if spec.burst_per_hour > 0:
+            start = rng.random(due.size) < spec.burst_per_hour * self.period_s[due] / 3600.0
+            self._burst_until[due[start]] = time_s + spec.burst_s
+        kept = (rng.random(due.size) >= spec.dropout) & (self._burst_until[due] < time_s)
+        d = duty[due]
+        noise = rng.uniform(-1.0, 1.0, (2, due.size))
+        w = omega_rad_s[due] + noise[0] * spec.speed_noise_rad_s
+        i_half = self.noise.current_halfwidth_a(d * bus_voltage_v)
+        i_motor = motor_current_a[due] + noise[1] * i_half
+        esc_ca = np.rint(np.maximum(d * i_motor, 0.0) * 100.0)
+        motor_ca = np.where(d > 0.02, np.rint(esc_ca / np.maximum(d, 0.02)), np.rint(i_motor * 100.0))
+        rpm = np.maximum(np.rint(w * RAD_S_TO_RPM), 0.0)
+        volt_cv = round(bus_voltage_v * 100.0)
+        self._next_min_s = float(self.next_s.min())
+        out = []
+        counts = self.counts
+        for k, j in enumerate(due.tolist()):
+            if not kept[k]:
+                continue
+            counts[j] += 1
+            out.append(
+                EscSample(
+                    time_s,
+                    j + 1,
+                    int(rpm[k]),
+                    int(esc_ca[k]),
+                    int(motor_ca[k]),
+                    volt_cv,
+                    round(float(esc_temp_c[j])),
+                    round(float(motor_temp_c[j])),
+                    float(d[k]),
+                    int(counts[j]),
+                )
+            )
+        return out

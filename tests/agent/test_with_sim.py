@@ -1,0 +1,276 @@
+"""End to end with the project's simulated hexacopter (``mav_motor_health.sim.live.SimVehicle``): its motors
+obey the paper's physics and fail as the paper's did; the agent, a real Mosquitto and, where named,
+MAVProxy between them. The MAVLink link runs through a UDP relay the test can cut, like a cable.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import select
+import socket
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+
+from conftest import MqttListener, free_port
+from mav_motor_health.agent import Agent, load_agent_config
+from mav_motor_health.diagnosis.states import MotorState
+from mav_motor_health.sim.live import SimVehicle
+from mav_motor_health.sim.scenario import load_scenario
+
+VEHICLE = "simhexa"
+
+
+class UdpRelay:
+    """A UDP hop between the vehicle and the agent that can be cut and restored (drops both ways)."""
+
+    def __init__(self, agent_port: int) -> None:
+        self.agent = ("127.0.0.1", agent_port)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.port = self.sock.getsockname()[1]
+        self.vehicle: tuple[str, int] | None = None
+        self.up = True
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self.sock], [], [], 0.1)
+            if not ready:
+                continue
+            try:
+                data, addr = self.sock.recvfrom(65535)
+            except OSError:
+                continue
+            if not self.up:
+                continue
+            try:
+                if addr == self.agent:
+                    if self.vehicle is not None:
+                        self.sock.sendto(data, self.vehicle)
+                else:
+                    self.vehicle = addr
+                    self.sock.sendto(data, self.agent)
+            except OSError:
+                pass
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(2)
+        self.sock.close()
+
+
+async def until(
+    predicate: Callable[[], Any], timeout_s: float, what: str, show: Callable[[], Any] | None = None
+) -> Any:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        await asyncio.sleep(0.02)
+    pytest.fail(f"timed out after {timeout_s} s waiting for {what}" + (f": {show()}" if show else ""))
+
+
+def states(listener: MqttListener) -> dict[int, str]:
+    out = {}
+    for _, p in listener.on("/state"):
+        out[p["motor"]] = p["state"]
+    return out
+
+
+def mqtt_events(listener: MqttListener) -> list[tuple[int, str, str]]:
+    return [(p["motor"], p["previous"], p["state"]) for _, p in listener.on(f"{VEHICLE}/events")]
+
+
+def agent_events(agent: Agent) -> list[tuple[int, str, str]]:
+    return [(c.motor, c.previous.label, c.state.label) for c in agent.changes]
+
+
+def texts_at_vehicle(vehicle: SimVehicle) -> list[tuple[float, str]]:
+    return [
+        (m.wall_time_s, m.fields.get("text", "")) for m in list(vehicle.received) if m.type == "STATUSTEXT"
+    ]
+
+
+@pytest.fixture
+def agent_port() -> int:
+    return free_port(socket.SOCK_DGRAM)
+
+
+def config(agent_port: int, broker_port: int):
+    return load_agent_config(
+        None,
+        connect=f"udpin:127.0.0.1:{agent_port}",
+        mqtt_url=f"mqtt://127.0.0.1:{broker_port}",
+        vehicle_id=VEHICLE,
+    )
+
+
+def test_sim_fault_announced_over_mavlink_and_mqtt_within_a_second(broker, agent_port):
+    listener = MqttListener(broker.port, f"mmh/{VEHICLE}/#", client_id="sim-listener-1")
+
+    async def main() -> None:
+        async with Agent(config(agent_port, broker.port)) as agent:
+            with SimVehicle(
+                load_scenario("flight/healthy_calm"), f"udpout:127.0.0.1:{agent_port}"
+            ) as vehicle:
+                await until(
+                    lambda: set(states(listener).values()) == {"NORMAL"} and len(states(listener)) == 6,
+                    30,
+                    "six motors NORMAL",
+                )
+                assert agent.tracker.autopilot == "ardupilot"
+                await asyncio.sleep(1.0)  # a second of healthy flight
+                assert all(s.state == MotorState.NORMAL for s in agent.monitor.status.values())
+                onset_wall, onset = time.time(), time.monotonic()
+                vehicle.inject("F2.1", 2)
+                mqtt_at = await until(
+                    lambda: next(
+                        (t for t, p in listener.on("/events") if p["motor"] == 2 and p["state"] == "F2.1"),
+                        None,
+                    ),
+                    10,
+                    "F2.1 on MQTT",
+                )
+                vehicle_at = await until(
+                    lambda: next(
+                        (t for t, x in texts_at_vehicle(vehicle) if x == "Motor 2: phase open (F2.1)"), None
+                    ),
+                    10,
+                    "the STATUSTEXT at the vehicle",
+                )
+                assert mqtt_at - onset < 1.0, f"MQTT {mqtt_at - onset:.2f} s after onset"
+                assert vehicle_at - onset_wall < 1.0, (
+                    f"STATUSTEXT {vehicle_at - onset_wall:.2f} s after onset"
+                )
+                sev = [
+                    m.fields["severity"]
+                    for m in vehicle.received
+                    if m.type == "STATUSTEXT" and "(F2.1)" in m.fields.get("text", "")
+                ]
+                assert sev and sev[0] == 2  # CRITICAL: a stopped motor
+                await until(
+                    lambda: any(
+                        m.type == "NAMED_VALUE_INT"
+                        and m.fields.get("name") == "MH_M2"
+                        and m.fields.get("value") == 2
+                        for m in vehicle.received
+                    ),
+                    5,
+                    "NAMED_VALUE_INT MH_M2 = 2 at the vehicle",
+                )
+                # no other motor was blamed
+                assert {c.motor for c in agent.changes if c.state.is_fault} == {2}
+
+    try:
+        asyncio.run(main())
+    finally:
+        listener.close()
+
+
+def test_sim_link_cut_and_broker_restart_lose_no_state_change(broker, agent_port):
+    listener = MqttListener(broker.port, f"mmh/{VEHICLE}/#", client_id="sim-listener-2")
+    relay = UdpRelay(agent_port)
+
+    async def main() -> None:
+        loop = asyncio.get_running_loop()
+        async with Agent(config(agent_port, broker.port)) as agent:
+            with SimVehicle(
+                load_scenario("flight/healthy_calm"), f"udpout:127.0.0.1:{relay.port}"
+            ) as vehicle:
+                await until(
+                    lambda: len(states(listener)) == 6 and set(states(listener).values()) == {"NORMAL"},
+                    30,
+                    "six motors NORMAL",
+                )
+                await until(lambda: mqtt_events(listener) == agent_events(agent), 10, "events delivered")
+
+                # the MAVLink link is cut; a motor fails meanwhile; the link comes back
+                relay.up = False
+                await until(
+                    lambda: set(states(listener).values()) == {"NO_DATA"}, 10, "all NO_DATA while cut"
+                )
+                await until(lambda: not agent.tracker.up, 10, "autopilot lost")
+                vehicle.inject("F4.2", 5)
+                relay.up = True
+                await until(
+                    lambda: states(listener).get(5) == "F4.2", 15, "motor 5 F4.2 after the link returns"
+                )
+                await until(lambda: states(listener).get(1) == "NORMAL", 10, "the others back to NORMAL")
+
+                # the broker restarts while the state changes
+                await loop.run_in_executor(None, broker.stop)
+                vehicle.clear_faults()
+                await until(
+                    lambda: agent.monitor.status[5].state == MotorState.NORMAL,
+                    15,
+                    "motor 5 back (broker down)",
+                )
+                vehicle.inject("F2.1", 3)
+                await until(
+                    lambda: agent.monitor.status[3].state == MotorState.F2_1, 10, "motor 3 F2.1 (broker down)"
+                )
+                await loop.run_in_executor(None, broker.start)
+                await until(
+                    lambda: mqtt_events(listener) == agent_events(agent),
+                    20,
+                    "every state change on MQTT, in order",
+                    lambda: (mqtt_events(listener)[-6:], agent_events(agent)[-6:]),
+                )
+                assert (5, "NORMAL", "NO_DATA") in agent_events(agent)
+                assert any(e[0] == 5 and e[2] == "F4.2" for e in agent_events(agent))
+                assert any(e[0] == 3 and e[2] == "F2.1" for e in agent_events(agent))
+                await until(lambda: states(listener).get(3) == "F2.1", 5, "retained state after the restart")
+                # the vehicle heard about both faults
+                await until(
+                    lambda: (
+                        {"Motor 5: back-EMF signal error (F4.2)", "Motor 3: phase open (F2.1)"}
+                        <= {t for _, t in texts_at_vehicle(vehicle)}
+                    ),
+                    5,
+                    "STATUSTEXTs at the vehicle",
+                )
+
+    try:
+        asyncio.run(main())
+    finally:
+        listener.close()
+        relay.close()
+
+
+def test_sim_behind_mavproxy_as_router(broker, mavproxy_router):
+    """Vehicle → MAVProxy (as mavlink-router or MAVProxy would sit on a Raspberry Pi) → agent, and back."""
+    listener = MqttListener(broker.port, f"mmh/{VEHICLE}/#", client_id="sim-listener-3")
+    router = mavproxy_router
+
+    async def main() -> None:
+        async with Agent(config(router.out_port, broker.port)) as agent:
+            with SimVehicle(
+                load_scenario("flight/healthy_calm"), f"udpout:127.0.0.1:{router.master_port}"
+            ) as vehicle:
+                await until(
+                    lambda: len(states(listener)) == 6 and set(states(listener).values()) == {"NORMAL"},
+                    40,
+                    "six motors NORMAL",
+                )
+                vehicle.inject("F4.2", 6)
+                await until(lambda: states(listener).get(6) == "F4.2", 10, "F4.2 over MQTT")
+                await until(
+                    lambda: any(
+                        t == "Motor 6: back-EMF signal error (F4.2)" for _, t in texts_at_vehicle(vehicle)
+                    ),
+                    10,
+                    "the STATUSTEXT through MAVProxy at the vehicle",
+                )
+                assert agent.tracker.autopilot == "ardupilot"
+
+    try:
+        asyncio.run(main())
+    finally:
+        listener.close()
