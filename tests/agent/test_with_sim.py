@@ -180,7 +180,8 @@ def test_sim_link_cut_and_broker_restart_lose_no_state_change(broker, agent_port
 
     async def main() -> None:
         loop = asyncio.get_running_loop()
-        async with Agent(config(agent_port, broker.port)) as agent:
+        fast = config(agent_port, broker.port).with_overrides(heartbeat_timeout_s=1.5)
+        async with Agent(fast) as agent:
             with SimVehicle(
                 load_scenario("flight/healthy_calm"), f"udpout:127.0.0.1:{relay.port}"
             ) as vehicle:
