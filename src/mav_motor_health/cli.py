@@ -22,10 +22,14 @@ COMMANDS = (
     "fit",
     "predict",
     "diagnose",
+    "replay",
+    "compare",
+    "explain",
+    "agent",
+    "display",
     "simulate",
     "score",
     "sim",
-    "agent",
 )
 
 

@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from .diagnosis.plausibility import PlausibilityRule
 from .diagnosis.profile import PersistenceRule, SteadyRule, ThresholdProfile
 from .errors import ConfigError
 from .model.params import MotorParams
@@ -27,6 +28,7 @@ __all__ = [
     "DEFAULT_PROFILE",
     "PARAMS_DIR",
     "dump_motor_params",
+    "dump_profile",
     "load_motor_params",
     "load_profile",
     "read_toml",
@@ -158,6 +160,7 @@ def load_motor_params(name_or_path: str | Path = DEFAULT_MOTOR) -> MotorParams:
         "T_f": motor.number("T_f", 0.0, unit="N*m"),
         "k": motor.number("k", 3.0, minimum=0.5, maximum=6.0),
     }
+    inertia = motor.number("J_kg_m2", 0.0, minimum=0.0, unit="kg*m^2")
     name = motor.text("name", path.stem)
     effects_section = motor.table("effects")
     effects = []
@@ -169,7 +172,7 @@ def load_motor_params(name_or_path: str | Path = DEFAULT_MOTOR) -> MotorParams:
     effects_section.done()
     motor.done()
     try:
-        return MotorParams(**values, name=name, effects=tuple(effects))
+        return MotorParams(**values, name=name, effects=tuple(effects), J_kg_m2=inertia or None)
     except ConfigError as exc:
         raise ConfigError(
             exc.reason, path=path, key=f"motor.{exc.key}" if exc.key else None, expected=exc.expected
@@ -179,8 +182,9 @@ def load_motor_params(name_or_path: str | Path = DEFAULT_MOTOR) -> MotorParams:
 def dump_motor_params(params: MotorParams, source: Mapping[str, str] | None = None) -> str:
     """TOML text for a motor that :func:`load_motor_params` reads back exactly."""
     lines = ["[motor]", f"name = {_toml_string(params.name)}"]
-    for key in ("R_ohm", "k_e", "C_p", "B", "T_f", "k"):
-        lines.append(f"{key} = {float(getattr(params, key))!r}")
+    for key in ("R_ohm", "k_e", "C_p", "B", "T_f", "k", "J_kg_m2"):
+        if getattr(params, key) is not None:
+            lines.append(f"{key} = {float(getattr(params, key))!r}")
     for effect_name, values in params.effects:
         lines += ["", f"[motor.effects.{effect_name}]"]
         lines += [f"{k} = {float(v)!r}" for k, v in values]
@@ -200,6 +204,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
     p = top.table("profile")
     steady = top.table("steady")
     pers = top.table("persistence")
+    plaus = top.table("plausibility")
     top.raw("source")
     top.done()
     band_raw = p.raw("current_band_a")
@@ -236,9 +241,20 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             stall_split_a=p.number("stall_split_a", 6.0, minimum=0.0, unit="A"),
             stall_split_per_v=p.number("stall_split_per_v", 0.0, unit="A/V"),
             stall_split_ref_v=p.number("stall_split_ref_v", 11.1, minimum=0.0, unit="V"),
+            speed_only_band_frac=p.number("speed_only_band_frac", 0.15, minimum=0.0, maximum=1.0),
+            min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
             steady=SteadyRule(
                 step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
                 settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
+                kind=steady.text("kind", "step"),
+                lag_fraction=steady.number("lag_fraction", 0.5, minimum=0.0),
+            ),
+            plausibility=PlausibilityRule(
+                **{
+                    name: plaus.number(name, default)
+                    for name, default in PlausibilityRule().__dict__.items()
+                    if name in plaus.data
+                }
             ),
             persistence=PersistenceRule(
                 default_announce_s=pers.number("default_announce_s", 0.1, minimum=0.0, unit="s"),
@@ -249,10 +265,48 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
     except ConfigError as exc:
         if exc.path is not None:
             raise
-        raise ConfigError(
-            exc.reason, path=path, key=f"profile.{exc.key}" if exc.key else None, expected=exc.expected
-        ) from None
+        key = exc.key
+        if key and key.split(".")[0] not in ("steady", "persistence", "plausibility"):
+            key = f"profile.{key}"
+        raise ConfigError(exc.reason, path=path, key=key, expected=exc.expected) from None
     p.done()
     steady.done()
     pers.done()
+    plaus.done()
     return profile
+
+
+def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = None) -> str:
+    """TOML text for a profile that :func:`load_profile` reads back exactly."""
+    band = ", ".join(f"[{v!r}, {w!r}]" for v, w in profile.current_band_a)
+    lines = [
+        "[profile]",
+        f"name = {_toml_string(profile.name)}",
+        f"description = {_toml_string(profile.description)}",
+        f"speed_band_rad_s = {profile.speed_band_rad_s!r}",
+        f"current_band_a = [{band}]",
+        f"stop_speed_rad_s = {profile.stop_speed_rad_s!r}",
+        f"stall_split_a = {profile.stall_split_a!r}",
+        f"stall_split_per_v = {profile.stall_split_per_v!r}",
+        f"stall_split_ref_v = {profile.stall_split_ref_v!r}",
+        f"speed_only_band_frac = {profile.speed_only_band_frac!r}",
+        f"min_command = {profile.min_command!r}",
+        "",
+        "[steady]",
+        f"kind = {_toml_string(profile.steady.kind)}",
+        f"step_v = {profile.steady.step_v!r}",
+        f"settle_s = {profile.steady.settle_s!r}",
+        f"lag_fraction = {profile.steady.lag_fraction!r}",
+        "",
+        "[persistence]",
+        f"default_announce_s = {profile.persistence.default_announce_s!r}",
+        f"clear_s = {profile.persistence.clear_s!r}",
+    ]
+    if profile.persistence.announce_s:
+        lines += ["", "[persistence.announce_s]"]
+        lines += [f"{_toml_string(label)} = {value!r}" for label, value in profile.persistence.announce_s]
+    lines += ["", "[plausibility]"]
+    lines += [f"{name} = {value!r}" for name, value in profile.plausibility.__dict__.items()]
+    if source:
+        lines += ["", "[source]"] + [f"{k} = {_toml_string(str(v))}" for k, v in source.items()]
+    return "\n".join(lines) + "\n"

@@ -138,7 +138,18 @@ def table_from_fields(fields: FlightFields) -> TelemetryTable:
     params = {f"SERVO{o}_FUNCTION": float(f) for o, f in FUNCTIONS.items()}
     low, high = mavlink_esc.pwm_range({"MOT_PWM_MIN": 1000, "MOT_PWM_MAX": 2000})
     cols: dict[str, list[np.ndarray]] = {
-        k: [] for k in ("time_s", "motor", "omega_rad_s", "current_a", "voltage_v", "bus_voltage_v")
+        k: []
+        for k in (
+            "time_s",
+            "motor",
+            "omega_rad_s",
+            "current_a",
+            "voltage_v",
+            "bus_voltage_v",
+            "throttle",
+            "esc_current_a",
+            "esc_temp_c",
+        )
     }
     time_s = fields.stamp_us * 1e-6
     for output in range(1, 9):
@@ -160,4 +171,7 @@ def table_from_fields(fields: FlightFields) -> TelemetryTable:
         cols["current_a"].append(current)
         cols["voltage_v"].append(voltage)
         cols["bus_voltage_v"].append(si["bus_voltage_v"])
+        cols["throttle"].append(throttle)
+        cols["esc_current_a"].append(si["esc_current_a"])
+        cols["esc_temp_c"].append(si["esc_temp_c"])
     return TelemetryTable({k: np.concatenate(v) for k, v in cols.items()}, source="synthetic flight")

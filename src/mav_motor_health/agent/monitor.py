@@ -85,7 +85,16 @@ class HealthMonitor:
             status = self.status[motor]
             arrays = {
                 name: np.array([getattr(s, name) for s in group], dtype=float)
-                for name in ("time_s", "voltage_v", "omega_rad_s", "current_a", "bus_voltage_v")
+                for name in (
+                    "time_s",
+                    "voltage_v",
+                    "omega_rad_s",
+                    "current_a",
+                    "bus_voltage_v",
+                    "throttle",
+                    "esc_current_a",
+                    "esc_temp_c",
+                )
             }
             cols = self.diagnoser.update_many(
                 motor,
@@ -94,6 +103,9 @@ class HealthMonitor:
                 arrays["omega_rad_s"],
                 arrays["current_a"],
                 arrays["bus_voltage_v"],
+                command=arrays["throttle"],
+                sensor_current_a=arrays["esc_current_a"],
+                context=arrays,  # what a model with fitted effects may read (temperatures, throttle...)
             )
             for k, sample in enumerate(group):
                 row: dict[str, Any] = {

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 from ..config import dump_motor_params
+from ..errors import DataError, FitError
 from ..model.estimation import DEFAULT_BIN_WIDTH_V, FitResult, estimate
 from ..telemetry.table import TelemetryTable
 from ._common import read_telemetry, write_new_file
@@ -32,6 +34,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="V",
         help=f"operating-point bin width of input voltage (default {DEFAULT_BIN_WIDTH_V} V)",
     )
+    p.add_argument(
+        "--with",
+        dest="with_effects",
+        metavar="EFFECT[,EFFECT...]",
+        help="add these effects one by one and show the error after each (see `explain`)",
+    )
+    p.add_argument(
+        "--effects-file",
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="a Python file declaring user effects for --with (repeatable)",
+    )
+    p.add_argument("--plot", metavar="FILE", help="with --with: plot the error after each step (PNG)")
     p.set_defaults(run=run)
 
 
@@ -49,18 +65,18 @@ def fit_table(
         import numpy as np
 
         table = table.select(np.isin(table["motor"], motors))
-    return estimate(
-        table.voltage_v(),
-        table["current_a"],
-        table["omega_rad_s"],
-        k=k,
-        fit_k=fit_k,
-        bin_width_v=bin_width_v,
-        name=name,
-    )
+    arrays = (table.voltage_v(), table["current_a"], table["omega_rad_s"])
+    try:
+        return estimate(*arrays, k=k, fit_k=fit_k, bin_width_v=bin_width_v, name=name)
+    except FitError:
+        # Bench files hold one sample per throttle step: each sample is its own operating point.
+        return estimate(*arrays, k=k, fit_k=fit_k, bin_width_v=bin_width_v, name=name, min_samples=1)
 
 
 def run(args: argparse.Namespace) -> int:
+    for target in (args.out, args.plot):
+        if target and Path(target).exists() and not args.force:  # fail before the work, not after
+            raise DataError("exists already; not overwritten (use --force to replace it)", path=target)
     table = read_telemetry(args.data)
     result = fit_table(
         table,
@@ -70,17 +86,50 @@ def run(args: argparse.Namespace) -> int:
         bin_width_v=args.bin_width,
         name=f"fitted from {args.data}",
     )
+    params = result.params
+    steps = None
+    if args.with_effects:
+        from ..model.effects.user import available_effects
+        from ..workbench.data import WorkbenchData
+        from ..workbench.steps import fit_with_effects
+
+        if args.motor:
+            import numpy as np
+
+            table = table.select(np.isin(table["motor"], args.motor))
+        names = [n.strip() for n in args.with_effects.split(",") if n.strip()]
+        steps = fit_with_effects(
+            WorkbenchData.from_table(table), names, registry=available_effects(args.effects_file), base=result
+        )
+        if steps.final is not None:
+            params = steps.final.params
     if args.json:
-        print(json.dumps(result.to_dict(), indent=2, allow_nan=True))
+        out = result.to_dict()
+        if steps is not None:
+            out["with_effects"] = steps.to_dict()
+        print(json.dumps(out, indent=2, allow_nan=True))
     else:
         print(result.report())
+        if steps is not None:
+            print()
+            print(steps.report())
+    if steps is not None and args.plot:
+        from ..workbench.plots import plot_steps
+
+        path = plot_steps(steps, args.plot, force=args.force)
+        if not args.json:
+            print(f"wrote {path}")
     if args.out:
         source = {
             "fitted_from": str(args.data),
             "operating_points": str(len(result.points)),
             "accuracy_current_pct": f"{result.mechanical.accuracy_pct:.3f}",
         }
-        path = write_new_file(args.out, dump_motor_params(result.params, source), force=args.force)
+        if steps is not None and steps.final is not None:
+            source["effects"] = ", ".join(steps.final.effects)
+            source["rmse_omega_rad_s"] = f"{steps.final.rmse_omega_rad_s:.4g}"
+            source["rmse_current_a"] = f"{steps.final.rmse_current_a:.4g}"
+        path = write_new_file(args.out, dump_motor_params(params, source), force=args.force)
         if not args.json:
             print(f"wrote {path}")
     return 0

@@ -1,4 +1,4 @@
-"""The diagnosis pipeline for one motor: model → steady rule → tree → persistence.
+"""The diagnosis pipeline for one motor: plausibility → model → steady rule → tree → persistence.
 
 :func:`diagnose_motor` is the single implementation. Replay calls it once per motor with whole arrays;
 the live agent calls it with each new sample and the carry from the previous call (see
@@ -7,15 +7,25 @@ the live agent calls it with each new sample and the carry from the previous cal
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ..model.dynamics import ResponseCarry, first_order_response, time_constant_s
 from ..model.equations import steady_state
 from ..model.params import MotorParams
+from ..model.predict import predict_steady
 from ..telemetry.table import TelemetryTable
 from .persistence import PersistenceCarry, announce
+from .plausibility import (
+    CURRENT_UNTRUSTED,
+    PlausibilityCarry,
+    SensorIssue,
+    check_motor,
+    sum_mismatch,
+)
 from .profile import ThresholdProfile
 from .states import MotorState
 from .steady import SteadyCarry, steady_mask
@@ -35,7 +45,12 @@ DIAGNOSIS_COLUMNS = (
     "current_a",
     "current_model_a",
     "voltage_v",
+    "sensor_flags",
 )
+
+#: States a stalled motor shows whatever its input: announced from transient samples too.
+_TRANSIENT_OK = (MotorState.F2_1, MotorState.F4_2, MotorState.STALLED)
+_SPEED_BROKEN = SensorIssue.SPEED_STUCK | SensorIssue.SPEED_RANGE
 
 
 @dataclass(frozen=True)
@@ -43,6 +58,8 @@ class MotorCarry:
     """Everything the pipeline remembers about one motor between calls."""
 
     steady: SteadyCarry = field(default_factory=SteadyCarry)
+    response: ResponseCarry = field(default_factory=ResponseCarry)
+    plausibility: PlausibilityCarry = field(default_factory=PlausibilityCarry)
     persistence: PersistenceCarry = field(default_factory=PersistenceCarry)
 
 
@@ -55,33 +72,101 @@ def diagnose_motor(
     current_a: NDArray[np.float64],
     bus_voltage_v: NDArray[np.float64] | None = None,
     carry: MotorCarry | None = None,
+    *,
+    command: NDArray[np.float64] | None = None,
+    sensor_current_a: NDArray[np.float64] | None = None,
+    extra_flags: NDArray[np.int16] | None = None,
+    context: Mapping[str, NDArray[np.float64]] | None = None,
 ) -> tuple[dict[str, NDArray], MotorCarry]:
-    """Diagnose one motor's samples (increasing time); returns result columns and the new carry."""
+    """Diagnose one motor's samples (increasing time); returns result columns and the new carry.
+
+    ``current_a`` is the motor current; ``sensor_current_a`` the current as the sensor reported it (the
+    ESC input current), checked for plausibility; ``command`` the normalised motor command (0..1);
+    ``extra_flags`` :class:`SensorIssue` flags found across motors (the currents' sum); ``context`` the
+    samples' other columns (temperatures, altitude...), which a model with fitted effects
+    (``params.effects``) reads; the base model ignores it.
+    """
     carry = carry or MotorCarry()
-    model = steady_state(params, voltage_v)
+    t = np.asarray(time_s, dtype=float)
+    v = np.asarray(voltage_v, dtype=float)
+    model = predict_steady(params, v, context) if params.effects else steady_state(params, v)
+    rule = profile.steady
+    if rule.kind == "dynamic" and params.J_kg_m2 is not None:
+        tau = time_constant_s(params, model.omega_rad_s)
+        omega_pred, response_carry = first_order_response(t, model.omega_rad_s, tau, carry.response)
+        turning = omega_pred > 0
+        current_pred = np.where(turning, (v - params.k_e * omega_pred) / params.R_ohm, model.current_a)
+        lag = rule.lag_fraction
+        steady = (
+            (np.abs(omega_pred - model.omega_rad_s) <= lag * profile.speed_band_rad_s)
+            & (np.abs(current_pred - model.current_a) <= lag * profile.current_halfwidth_a(v))
+            & np.isfinite(v)
+        )
+        steady_carry = carry.steady
+    else:
+        omega_pred, current_pred = model.omega_rad_s, model.current_a
+        steady, steady_carry = steady_mask(rule, t, v, carry.steady)
+        response_carry = carry.response
+    reported = current_a if sensor_current_a is None else sensor_current_a
+    flags, plausibility_carry = check_motor(
+        profile.plausibility, t, command, reported, omega_rad_s, carry.plausibility
+    )
+    if extra_flags is not None:
+        flags = flags | extra_flags
+    current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_a)
     state = classify(
         profile,
         omega_rad_s=omega_rad_s,
-        omega_model_rad_s=model.omega_rad_s,
+        omega_model_rad_s=omega_pred,
         current_a=current_a,
-        current_model_a=model.current_a,
-        voltage_v=voltage_v,
+        current_model_a=current_pred,
+        voltage_v=v,
         bus_voltage_v=bus_voltage_v,
+        current_trusted=current_trusted,
+        omega_expected_rad_s=np.minimum(omega_pred, model.omega_rad_s),
     )
-    steady, steady_carry = steady_mask(profile.steady, time_s, voltage_v, carry.steady)
-    transient_ok = np.isin(state, [MotorState.F2_1, MotorState.F4_2])  # a stalled motor needs no steady input
-    eligible = (steady | transient_ok) & (state != MotorState.NO_DATA)
+    state[(flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT  # never a motor fault from a bad sensor
+    eligible = (steady | np.isin(state, _TRANSIENT_OK)) & (state != MotorState.NO_DATA)
+    if command is not None and profile.min_command > 0:
+        eligible &= ~(np.asarray(command, dtype=float) < profile.min_command)  # idle and spin-up: not judged
     announced, persistence_carry = announce(
-        profile.persistence.hold_s(), time_s, state, eligible, carry.persistence
+        profile.persistence.hold_s(), t, state, eligible, carry.persistence
     )
     columns = {
         "state": state,
         "announced": announced,
         "steady": steady,
-        "omega_model_rad_s": model.omega_rad_s,
-        "current_model_a": model.current_a,
+        "omega_model_rad_s": omega_pred,
+        "current_model_a": current_pred,
+        "sensor_flags": flags,
     }
-    return columns, MotorCarry(steady=steady_carry, persistence=persistence_carry)
+    new_carry = MotorCarry(
+        steady=steady_carry,
+        response=response_carry,
+        plausibility=plausibility_carry,
+        persistence=persistence_carry,
+    )
+    return columns, new_carry
+
+
+def _current_sum_flags(table: TelemetryTable, profile: ThresholdProfile) -> NDArray[np.int16] | None:
+    """CURRENT_SUM flags per row where the ESC currents' sum disagrees with the battery monitor."""
+    esc = table.get("esc_current_a")
+    battery = table.get("battery_current_a")
+    if esc is None or battery is None or not np.isfinite(battery).any():
+        return None
+    t, motors = table["time_s"], table["motor"]
+    order = np.argsort(t, kind="stable")
+    total = np.zeros(len(table))
+    for motor in table.motors():
+        sel = np.flatnonzero(motors == motor)
+        j = np.searchsorted(t[sel], t[order], side="right") - 1  # latest sample of this motor at each time
+        held = np.where(j >= 0, esc[sel][np.maximum(j, 0)], np.nan)
+        total += np.nan_to_num(held)
+    mismatch, _, _ = sum_mismatch(profile.plausibility, t[order], total, battery[order])
+    flags = np.zeros(len(table), dtype=np.int16)
+    flags[order[mismatch]] = SensorIssue.CURRENT_SUM
+    return flags
 
 
 def diagnose(
@@ -94,17 +179,33 @@ def diagnose(
     ordered = table.sorted_by_motor_time()
     voltage = ordered.voltage_v()
     bus = ordered.get("bus_voltage_v")
+    command = ordered.get("throttle")
+    sensor_current = ordered.get("esc_current_a")
+    sum_flags = _current_sum_flags(ordered, profile)
+    n = len(ordered)
     out: dict[str, NDArray] = {
-        "state": np.zeros(len(ordered), dtype=np.int8),
-        "announced": np.zeros(len(ordered), dtype=np.int8),
-        "steady": np.zeros(len(ordered), dtype=bool),
-        "omega_model_rad_s": np.full(len(ordered), np.nan),
-        "current_model_a": np.full(len(ordered), np.nan),
+        "state": np.zeros(n, dtype=np.int8),
+        "announced": np.zeros(n, dtype=np.int8),
+        "steady": np.zeros(n, dtype=bool),
+        "omega_model_rad_s": np.full(n, np.nan),
+        "current_model_a": np.full(n, np.nan),
+        "sensor_flags": np.zeros(n, dtype=np.int16),
     }
     motors = ordered["motor"]
+
+    def part(values: NDArray | None, sel: NDArray) -> NDArray | None:
+        return None if values is None else values[sel]
+
     for motor in ordered.motors():
         sel = np.flatnonzero(motors == motor)
         motor_params = params[motor] if isinstance(params, dict) else params
+        context = None
+        if motor_params.effects:
+            context = {
+                name: np.asarray(ordered[name][sel], dtype=float)
+                for name in ordered.names
+                if ordered[name].dtype.kind in "biuf"
+            }
         cols, _ = diagnose_motor(
             motor_params,
             profile,
@@ -112,7 +213,11 @@ def diagnose(
             voltage[sel],
             ordered["omega_rad_s"][sel],
             ordered["current_a"][sel],
-            None if bus is None else bus[sel],
+            part(bus, sel),
+            command=part(command, sel),
+            sensor_current_a=part(sensor_current, sel),
+            extra_flags=part(sum_flags, sel),
+            context=context,
         )
         for name, values in cols.items():
             out[name][sel] = values
@@ -126,6 +231,7 @@ def diagnose(
         current_a=ordered["current_a"],
         current_model_a=out["current_model_a"],
         voltage_v=voltage,
+        sensor_flags=out["sensor_flags"],
     )
     for name in ordered.names:
         result.setdefault(name, ordered[name])
@@ -148,19 +254,31 @@ class StreamingDiagnoser:
         omega_rad_s: float,
         current_a: float,
         bus_voltage_v: float | None = None,
+        *,
+        command: float | None = None,
+        sensor_current_a: float | None = None,
+        extra_flags: int = 0,
+        context: Mapping[str, float] | None = None,
     ) -> dict[str, object]:
-        """Diagnose one new sample of one motor; returns the result row (state codes as ints)."""
-        motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
-        t = np.array([time_s])
-        cols, self.carries[motor] = diagnose_motor(
-            motor_params,
-            self.profile,
-            t,
+        """Diagnose one new sample of one motor; returns the result row (state codes as ints).
+
+        ``context`` gives the sample's other variables for a model with effects.
+        """
+
+        def one(x: float | None) -> NDArray[np.float64] | None:
+            return None if x is None else np.array([x], dtype=float)
+
+        cols = self.update_many(
+            motor,
+            np.array([time_s]),
             np.array([voltage_v]),
             np.array([omega_rad_s]),
             np.array([current_a]),
-            None if bus_voltage_v is None else np.array([bus_voltage_v]),
-            self.carries.get(motor),
+            one(bus_voltage_v),
+            command=one(command),
+            sensor_current_a=one(sensor_current_a),
+            extra_flags=np.array([extra_flags], dtype=np.int16),
+            context=None if context is None else {k: np.array([v], dtype=float) for k, v in context.items()},
         )
         return {
             "time_s": time_s,
@@ -179,9 +297,18 @@ class StreamingDiagnoser:
         omega_rad_s: NDArray[np.float64],
         current_a: NDArray[np.float64],
         bus_voltage_v: NDArray[np.float64] | None = None,
+        *,
+        command: NDArray[np.float64] | None = None,
+        sensor_current_a: NDArray[np.float64] | None = None,
+        extra_flags: NDArray[np.int16] | None = None,
+        context: Mapping[str, NDArray[np.float64]] | None = None,
     ) -> dict[str, NDArray]:
         """Diagnose a few new samples of one motor at once (same results as one by one, less overhead)."""
         motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
+
+        def arr(x: NDArray | None) -> NDArray[np.float64] | None:
+            return None if x is None else np.asarray(x, dtype=float)
+
         cols, self.carries[motor] = diagnose_motor(
             motor_params,
             self.profile,
@@ -189,8 +316,12 @@ class StreamingDiagnoser:
             np.asarray(voltage_v, dtype=float),
             np.asarray(omega_rad_s, dtype=float),
             np.asarray(current_a, dtype=float),
-            None if bus_voltage_v is None else np.asarray(bus_voltage_v, dtype=float),
+            arr(bus_voltage_v),
             self.carries.get(motor),
+            command=arr(command),
+            sensor_current_a=arr(sensor_current_a),
+            extra_flags=extra_flags,
+            context=context,
         )
         return cols
 

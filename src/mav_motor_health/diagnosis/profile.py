@@ -13,27 +13,45 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConfigError
+from .plausibility import PlausibilityRule
 from .states import MotorState
 
 __all__ = ["PersistenceRule", "SteadyRule", "ThresholdProfile"]
 
 
+STEADY_KINDS = ("step", "dynamic")
+
+
 @dataclass(frozen=True)
 class SteadyRule:
-    """When a sample counts as steady state.
+    """When a sample counts as steady state, and what the measurement is compared with.
 
-    ``step_v``: a change of input voltage larger than this between two samples is a step;
-    ``settle_s``: after a step, samples are not steady for this long (the motor's response settles).
+    ``kind = "step"`` (the testbed): a change of input voltage larger than ``step_v`` between two samples
+    is a step, and samples are not steady for ``settle_s`` after it; measurements are compared with the
+    steady-state model.
+
+    ``kind = "dynamic"`` (flight; motors with a known inertia J, else the step rule applies): the steady-state prediction is passed through the motor's own
+    first-order response (time constant from J and the model, :mod:`..model.dynamics`), measurements are
+    compared with that, and a sample counts as quasi-steady where the response has caught up with the
+    steady state to within ``lag_fraction`` of the speed and current bands.
     """
 
     step_v: float = 0.2
     settle_s: float = 0.3
+    kind: str = "step"
+    lag_fraction: float = 0.5
 
     def __post_init__(self) -> None:
         if not (self.step_v > 0 and self.settle_s >= 0):
             raise ConfigError(
                 "step_v must be > 0 and settle_s >= 0", key="steady", expected="step_v > 0 V, settle_s >= 0 s"
             )
+        if self.kind not in STEADY_KINDS:
+            raise ConfigError(
+                f"{self.kind!r}", key="steady.kind", expected=f"one of {', '.join(STEADY_KINDS)}"
+            )
+        if not self.lag_fraction > 0:
+            raise ConfigError(f"{self.lag_fraction!r}", key="steady.lag_fraction", expected="a fraction > 0")
 
 
 @dataclass(frozen=True)
@@ -82,8 +100,11 @@ class ThresholdProfile:
     stall_split_a: float = 6.0
     stall_split_per_v: float = 0.0
     stall_split_ref_v: float = 11.1
+    speed_only_band_frac: float = 0.15
+    min_command: float = 0.0
     steady: SteadyRule = field(default_factory=SteadyRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
+    plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
     description: str = ""
 
     def __post_init__(self) -> None:

@@ -22,6 +22,9 @@ class MotorState(enum.IntEnum):
     UNKNOWN = 6  # a combination the tree does not name
     NO_DATA = 7  # telemetry missing or stale
     SENSOR_FAULT = 8  # a signal is implausible: the sensor, not the motor, is suspect
+    SLOW = 9  # speed only (no trusted current): slower than the command should give: F1.1 or F4.1
+    STALLED = 10  # speed only: stopped although commanded: F2.1 or F4.2
+    FAST = 11  # speed only: faster than the command should give: F3.1
 
     @property
     def label(self) -> str:
@@ -56,6 +59,9 @@ _LABELS = {
     MotorState.UNKNOWN: "UNKNOWN",
     MotorState.NO_DATA: "NO_DATA",
     MotorState.SENSOR_FAULT: "SENSOR_FAULT",
+    MotorState.SLOW: "SLOW",
+    MotorState.STALLED: "STALLED",
+    MotorState.FAST: "FAST",
 }
 _DESCRIPTIONS = {
     MotorState.NORMAL: "normal",
@@ -67,10 +73,23 @@ _DESCRIPTIONS = {
     MotorState.UNKNOWN: "unknown fault",
     MotorState.NO_DATA: "no telemetry",
     MotorState.SENSOR_FAULT: "sensor implausible",
+    MotorState.SLOW: "slow (F1.1 or F4.1)",
+    MotorState.STALLED: "stalled (F2.1 or F4.2)",
+    MotorState.FAST: "fast (F3.1)",
 }
 _BY_LABEL = {label: state for state, label in _LABELS.items()}
 _FAULTS = frozenset(
-    {MotorState.F1_1, MotorState.F2_1, MotorState.F3_1, MotorState.F4_1, MotorState.F4_2, MotorState.UNKNOWN}
+    {
+        MotorState.F1_1,
+        MotorState.F2_1,
+        MotorState.F3_1,
+        MotorState.F4_1,
+        MotorState.F4_2,
+        MotorState.UNKNOWN,
+        MotorState.SLOW,
+        MotorState.STALLED,
+        MotorState.FAST,
+    }
 )
 
 

@@ -10,9 +10,17 @@ Our reading of the paper, checked against the transitions it reports in section 
    current), else ``F4.1`` (an open transistor: slower and less current);
 5. anything else (ω above its band with i inside or above): ``UNKNOWN``.
 
+Where the current is absent or not trusted (``current_trusted`` False), only speed is used: ``STALLED``
+(F2.1 or F4.2) below the stop speed, ``SLOW`` (F1.1 or F4.1) far below the model speed, ``FAST`` (F3.1)
+far above it, else ``NORMAL``: the states name the faults that speed alone cannot tell apart. "Far" is
+the wider of the speed band and ``speed_only_band_frac`` of the model speed: without the current, an error
+of the model (an extrapolated calibration, say) cannot be told from a fault.
+
 Rule 1 applies only where the model itself expects the motor to turn faster than the stop speed plus the
 speed band: a motor at idle or disarmed is not "stopped" in the paper's sense (its testbed never ran below
-4 V, 390 rad/s). This is our addition.
+4 V, 390 rad/s). This is our addition. ``omega_expected_rad_s`` (default: the model speed) is the speed the
+model is sure of; in flight the pipeline passes the lower of the steady state and its lagged response, so
+that a motor spinning down after its command dropped is not taken for a stalled one.
 """
 
 from __future__ import annotations
@@ -35,6 +43,8 @@ def classify(
     current_model_a: ArrayLike,
     voltage_v: ArrayLike,
     bus_voltage_v: ArrayLike | None = None,
+    current_trusted: ArrayLike | None = None,
+    omega_expected_rad_s: ArrayLike | None = None,
 ) -> NDArray[np.int8]:
     """State code per sample (see :class:`MotorState`); NaN inputs give ``NO_DATA``."""
     w, w_model, i, i_model, v = np.broadcast_arrays(
@@ -52,7 +62,8 @@ def classify(
     current_low = i < i_model - band_i
     current_high = i > i_model + band_i
     # Rule 1 needs the model to expect a turning motor: an idle or disarmed motor is not a stalled one.
-    stopped = (np.abs(w) < profile.stop_speed_rad_s) & (w_model >= profile.stop_speed_rad_s + band_w)
+    expected = w_model if omega_expected_rad_s is None else np.broadcast_to(omega_expected_rad_s, w.shape)
+    stopped = (np.abs(w) < profile.stop_speed_rad_s) & (expected >= profile.stop_speed_rad_s + band_w)
 
     state = np.full(w.shape, MotorState.UNKNOWN, dtype=np.int8)
     not_high = ~speed_high
@@ -63,4 +74,15 @@ def classify(
     state[stopped] = np.where(i[stopped] < split[stopped], MotorState.F2_1, MotorState.F4_2)
     missing = ~(np.isfinite(w) & np.isfinite(w_model) & np.isfinite(i) & np.isfinite(i_model))
     state[missing] = MotorState.NO_DATA
+    # Speed only, where the current is absent or untrusted: say what speed can say, and no more.
+    speed_only = ~np.isfinite(i) if current_trusted is None else ~np.broadcast_to(current_trusted, w.shape)
+    speed_only = speed_only & np.isfinite(w) & np.isfinite(w_model)
+    if np.any(speed_only):
+        # Without current a model error cannot be told from a fault: ask for a large departure.
+        wide = np.maximum(band_w, profile.speed_only_band_frac * np.abs(w_model))
+        only = np.full(w.shape, MotorState.NORMAL, dtype=np.int8)
+        only[w < w_model - wide] = MotorState.SLOW
+        only[w > w_model + wide] = MotorState.FAST
+        only[stopped] = MotorState.STALLED
+        state[speed_only] = only[speed_only]
     return state

@@ -76,7 +76,12 @@ def steady_state(
         if Cp > 0:
             hi = np.minimum(hi, (d / Cp) ** (1.0 / k))  # root of the power part: another upper bound
         lo = np.zeros_like(hi)
-        w = hi.copy()
+        w = _closed_form_start(Cp, linear, d, k, hi)
+        if Cp > 0 and k in (2, 3):
+            # The closed form is the root up to rounding: one Newton step polishes it.
+            f = Cp * w**k + linear * w - d
+            w = np.clip(w - f / (Cp * k * w ** (k - 1.0) + linear), 0.0, hi)
+            max_iter = 0
         for _ in range(max_iter):
             f = Cp * w**k + linear * w - d
             # Keep the bracket [lo, hi] around the root, then take a Newton step inside it.
@@ -95,3 +100,22 @@ def steady_state(
         omega[turning] = w
     current = np.where(turning, (v - ke * omega) / R, v / R)
     return SteadyState(omega.reshape(shape), current.reshape(shape))
+
+
+def _closed_form_start(Cp: float, linear: float, d: FloatArray, k: float, hi: FloatArray) -> FloatArray:
+    """The root itself for k = 1, 2, 3 (closed forms), else the upper bound ``hi`` for Newton to descend from.
+
+    For k = 3, ``ω³ + pω − q = 0`` with p = linear/C_p > 0 has one real root,
+    ``ω = 2·sqrt(p/3)·sinh(asinh(1.5·q/p·sqrt(3/p))/3)``, free of the cancellation in Cardano's form.
+    Newton then only polishes (one or two steps).
+    """
+    if Cp == 0 or k == 1:
+        return d / (linear + Cp) if k == 1 else hi
+    if k == 2:
+        return 2.0 * d / (linear + np.sqrt(linear * linear + 4.0 * Cp * d))  # stable quadratic root
+    if k == 3:
+        p = linear / Cp
+        q = d / Cp
+        root: FloatArray = 2.0 * np.sqrt(p / 3.0) * np.sinh(np.arcsinh(1.5 * q / p * np.sqrt(3.0 / p)) / 3.0)
+        return np.minimum(root, hi)
+    return hi

@@ -32,7 +32,16 @@ from ..errors import FitError
 from .equations import current_from_speed, steady_state, voltage_from_current_speed
 from .params import PARAMETER_UNITS, MotorParams
 
-__all__ = ["EquationFit", "FitResult", "OperatingPoints", "accuracy_pct", "estimate", "operating_points"]
+__all__ = [
+    "EquationFit",
+    "FitResult",
+    "OperatingPoints",
+    "SpeedOnlyFit",
+    "accuracy_pct",
+    "estimate",
+    "estimate_speed_only",
+    "operating_points",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -336,3 +345,72 @@ def estimate(
 # Re-exported for callers that evaluate the fitted equations on their own points.
 predict_voltage = voltage_from_current_speed
 predict_current = current_from_speed
+
+
+@dataclass(frozen=True)
+class SpeedOnlyFit:
+    """A model calibrated on speed alone: the parameters and how well they reproduce the speed."""
+
+    params: MotorParams
+    fit: EquationFit
+    points: OperatingPoints = field(repr=False)
+
+
+def estimate_speed_only(
+    voltage_v: ArrayLike,
+    omega_rad_s: ArrayLike,
+    base: MotorParams,
+    *,
+    bin_width_v: float | None = DEFAULT_BIN_WIDTH_V,
+    min_samples: int = DEFAULT_MIN_SAMPLES,
+    wide_span_v: float = 2.0,
+    name: str = "speed-only calibration",
+) -> SpeedOnlyFit:
+    """Calibrate the forward speed ω(V) where no current can be trusted (RPM-only ESCs, a stuck sensor).
+
+    Speed alone identifies only combinations of the parameters (multiply eq. 7 by R:
+    ``R·C_p·ω^k + (R·B + k_e²)·ω + R·T_f = k_e·V``), so R, B and k are kept from ``base`` and k_e, C_p
+    and T_f are fitted by Levenberg–Marquardt on the operating points' mean speeds (k_e and T_f when the
+    input spans less than ``wide_span_v``, as in a hover; k_e alone below a tenth of that). The current the
+    result predicts is only as good as ``base``'s R: diagnose with it in speed-only mode.
+    """
+    v_all = np.asarray(voltage_v, dtype=float).ravel()
+    w_all = np.asarray(omega_rad_s, dtype=float).ravel()
+    ok = np.isfinite(v_all) & np.isfinite(w_all)
+    points = operating_points(
+        v_all[ok], np.zeros(ok.sum()), w_all[ok], bin_width_v=bin_width_v, min_samples=min_samples
+    )
+    if len(points) == 0:
+        raise FitError("no operating point (a voltage bin with enough samples) to calibrate the speed on")
+    v, w = points.voltage_v, points.omega_rad_s
+    # A narrow span of input supports few parameters: a hover gives the local line of ω(V) (k_e and the
+    # start voltage through T_f), a single point the speed per volt alone; a wide span also the propeller
+    # load that bends the curve.
+    span = float(np.ptp(v))
+    if span >= wide_span_v and len(points) >= 4:
+        names = ["k_e", "C_p", "T_f"]
+    elif span >= 0.1 * wide_span_v and len(points) >= 3:
+        names = ["k_e", "T_f"]  # slope and start voltage: the local line through the operating points
+    else:
+        names = ["k_e"]
+
+    def model(x: FloatArray) -> MotorParams:
+        values = dict(zip(names, x))
+        return base.replace(
+            k_e=abs(values["k_e"]),
+            C_p=abs(values.get("C_p", base.C_p)),
+            T_f=values.get("T_f", base.T_f),
+            name=name,
+        )
+
+    def residual(x: FloatArray) -> FloatArray:
+        return steady_state(model(x), v).omega_rad_s - w
+
+    start = {"k_e": base.k_e, "C_p": max(base.C_p, 1e-14), "T_f": base.T_f}
+    typical = {"k_e": base.k_e, "C_p": max(base.C_p, 1e-12), "T_f": max(abs(base.T_f), 1e-3)}
+    x0 = np.array([start[n] for n in names])
+    fit = _levenberg_marquardt(
+        residual, x0, np.array([typical[n] for n in names]), names, w, "forward speed ω(V)"
+    )
+    params = model(np.array([fit.values[n] for n in names]))
+    return SpeedOnlyFit(params=params, fit=fit, points=points)

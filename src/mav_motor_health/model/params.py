@@ -22,6 +22,7 @@ PARAMETER_UNITS: dict[str, str] = {
     "B": "N*m/(rad/s)",
     "T_f": "N*m",
     "k": "1",
+    "J_kg_m2": "kg*m^2",
 }
 
 
@@ -31,7 +32,8 @@ class MotorParams:
 
     ``R_ohm`` phase resistance [Ω]; ``k_e`` back-EMF constant [V·s/rad], equal to the torque constant
     k_t [N·m/A]; ``C_p`` propeller load factor [N·m/(rad/s)^k]; ``B`` viscous damping [N·m/(rad/s)];
-    ``T_f`` dynamic friction torque [N·m]; ``k`` exponent of the propeller load (3 in the paper).
+    ``T_f`` dynamic friction torque [N·m]; ``k`` exponent of the propeller load (3 in the paper);
+    ``J_kg_m2`` rotor + propeller inertia [kg·m²], needed only for the motor's time constant in flight.
 
     ``effects`` holds extra physical effects by name with their fitted parameters (see
     :mod:`mav_motor_health.model.effects` where present); the base model ignores it.
@@ -44,6 +46,7 @@ class MotorParams:
     T_f: float
     k: float = 3.0
     name: str = "motor"
+    J_kg_m2: float | None = None
     effects: tuple[tuple[str, tuple[tuple[str, float], ...]], ...] = field(default=())
 
     def __post_init__(self) -> None:
@@ -60,6 +63,10 @@ class MotorParams:
         for key, ok, expected in checks:
             if not ok:
                 raise ConfigError(f"{getattr(self, key)!r} is out of range", key=key, expected=expected)
+        if self.J_kg_m2 is not None and not (math.isfinite(self.J_kg_m2) and self.J_kg_m2 > 0):
+            raise ConfigError(
+                f"{self.J_kg_m2!r} is out of range", key="J_kg_m2", expected="an inertia > 0 kg*m^2"
+            )
         if self.B + self.k_e**2 / self.R_ohm <= 0:
             raise ConfigError(
                 "B is so negative that speed no longer rises with voltage",

@@ -1,4 +1,5 @@
-"""Sinks for motor health: MAVLink (STATUSTEXT, NAMED_VALUE_*, the MOTOR_HEALTH dialect) and MQTT."""
+"""Sinks: what the diagnosis is published to (MAVLink STATUSTEXT, NAMED_VALUE_* and the MOTOR_HEALTH
+dialect; MQTT; the web display)."""
 
 from .mavlink_health import StatustextGate, TokenBucket, severity_for, statustext_for
 from .mqtt import MqttPublisher, MqttSettings, Outbox, parse_mqtt_url

@@ -38,7 +38,7 @@ STATUSTEXT_MAX = 50
 MAV_SEVERITY_CRITICAL = 2
 MAV_SEVERITY_WARNING = 4
 MAV_SEVERITY_INFO = 6
-_STOPPED = frozenset({MotorState.F2_1, MotorState.F4_2})
+_STOPPED = frozenset({MotorState.F2_1, MotorState.F4_2, MotorState.STALLED})
 
 
 def severity_for(state: MotorState) -> int:

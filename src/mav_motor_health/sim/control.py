@@ -70,8 +70,7 @@ class FlightController:
         self.att_sp = [0.0, 0.0, 0.0]
         self.gyro_noise_rad_s = 0.0
         self.rng: np.random.Generator | None = None
-        self._max_thrust_at_v = -1.0
-        self._max_thrust_n = 0.0
+        self._max_thrust_cache: dict[int, float] = {}
 
     def _set_mixer(self) -> None:
         """Pseudo-inverse of the allocation over the motors still working (ArduPilot's thrust boost)."""
@@ -171,11 +170,12 @@ class FlightController:
 
     def max_thrust_n(self, bus_voltage_v: float) -> float:
         """Thrust of one motor at full command (cached: the bus voltage moves slowly)."""
-        if abs(bus_voltage_v - self._max_thrust_at_v) > 0.05:
-            w = float(steady_state(self.motor, [self.g.spin_max * bus_voltage_v]).omega_rad_s[0])
-            self._max_thrust_n = self.frame.thrust_coeff * w * w
-            self._max_thrust_at_v = bus_voltage_v
-        return self._max_thrust_n
+        key = round(bus_voltage_v * 20.0)  # 50 mV grid
+        cached = self._max_thrust_cache.get(key)
+        if cached is None:
+            w = float(steady_state(self.motor, [self.g.spin_max * key / 20.0]).omega_rad_s[0])
+            cached = self._max_thrust_cache[key] = self.frame.thrust_coeff * w * w
+        return cached
 
     def duty_for_thrust(self, thrust_n: NDArray[np.float64], bus_voltage_v: float) -> NDArray[np.float64]:
         """Thrust linearisation: the duty whose steady state gives each thrust (motor model, eq. 9–10)."""

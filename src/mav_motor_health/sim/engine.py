@@ -89,7 +89,9 @@ class Simulation:
         self.scenario = sc = scenario
         self.rng = np.random.default_rng(sc.seed)
         self.params = load_motor_params(sc.motor)
-        self.dynamics = MotorDynamics(self.params)
+        self.dynamics = MotorDynamics(
+            self.params, inertia_kg_m2=self.params.J_kg_m2 or MotorDynamics.inertia_kg_m2
+        )
         self.faults: list[FaultSpec] = list(sc.faults)
         self.n = sc.n_motors
         self.time_s = 0.0

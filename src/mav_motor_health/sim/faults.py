@@ -118,6 +118,7 @@ class FaultEffects:
     stalled: NDArray[np.bool_]
     stall_current_a: NDArray[np.float64]
     back_emf_lost: NDArray[np.bool_]
+    any_stalled: bool = False
 
     @classmethod
     def healthy(cls, n: int) -> FaultEffects:
@@ -153,4 +154,5 @@ def effects_at(faults: tuple[FaultSpec, ...] | list[FaultSpec], time_s: float, n
             fx.stalled[j] = True
             fx.stall_current_a[j] = f.stall_current
             fx.back_emf_lost[j] = f.kind == "F4.2"
+    fx.any_stalled = bool(fx.stalled.any())
     return fx

@@ -97,28 +97,24 @@ class MotorBank:
         """Advance by ``dt`` with ``voltage_v`` applied (duty × bus voltage) under fault effects ``fx``."""
         d, p = self.dyn, self.dyn.params
         v = np.maximum(voltage_v, 0.0)
-        w = self.omega_rad_s
+        w_pos = self.omega_rad_s  # never negative
         cp = p.C_p * self.load_factor * fx.load_factor
-        g = fx.drive_factor
+        g_r = fx.drive_factor / p.R_ohm
         k = p.k
-        w_pos = np.maximum(w, 0.0)
-        wk1 = w_pos ** (k - 1.0)
+        wk1 = w_pos * w_pos if k == 3.0 else w_pos ** (k - 1.0)
         # Load torque and its slope; friction (T_f, the rubbing bar) only acts on a turning rotor.
         turning = w_pos > 1e-9
         coulomb = p.T_f + fx.rub_torque_nm
-        load = cp * wk1 * w_pos + (p.B + fx.rub_viscous_nm_s) * w_pos + np.where(turning, coulomb, 0.0)
-        dload = k * cp * wk1 + p.B + fx.rub_viscous_nm_s
-        current = g * (v - p.k_e * w_pos) / p.R_ohm
-        drive = p.k_t * current
+        viscous = p.B + fx.rub_viscous_nm_s
+        load = (cp * wk1 + viscous) * w_pos + coulomb * turning
+        drive = p.k_t * g_r * (v - p.k_e * w_pos)
+        slope = g_r * (p.k_t * p.k_e) + k * cp * wk1 + viscous  # −d(drive − load)/dω
+        w_new = np.maximum(w_pos + dt * (drive - load) / (d.inertia_kg_m2 + dt * slope), 0.0)
         # Held at rest by friction unless the drive beats it.
-        breakaway = ~turning & (drive <= coulomb)
-        f = drive - load
-        fprime = -(g * p.k_t * p.k_e / p.R_ohm) - dload
-        w_new = w_pos + dt * f / (d.inertia_kg_m2 - dt * fprime)
-        w_new = np.where(breakaway, 0.0, np.maximum(w_new, 0.0))
-        i_new = g * (v - p.k_e * w_new) / p.R_ohm
+        w_new[~turning & (drive <= coulomb)] = 0.0
+        i_new = g_r * (v - p.k_e * w_new)
 
-        if np.any(fx.stalled):
+        if fx.any_stalled:
             w_new, i_new = self._stall_step(w_pos, i_new, w_new, cp, dt, fx)
         else:
             self._stall_time_s[:] = 0.0

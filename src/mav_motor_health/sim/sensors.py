@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,9 +41,8 @@ class SensorSpec:
     burst_s: float = 1.0
 
 
-@dataclass(frozen=True)
-class EscSample:
-    """One quantised ESC report."""
+class EscSample(NamedTuple):
+    """One quantised ESC report (a named tuple: millions are made in a long flight)."""
 
     time_s: float
     motor: int
@@ -99,32 +99,34 @@ class EscSensors:
             start = rng.random(due.size) < spec.burst_per_hour * self.period_s[due] / 3600.0
             self._burst_until[due[start]] = time_s + spec.burst_s
         kept = (rng.random(due.size) >= spec.dropout) & (self._burst_until[due] < time_s)
-        volts = duty[due] * bus_voltage_v
-        w = omega_rad_s[due] + rng.uniform(-1.0, 1.0, due.size) * spec.speed_noise_rad_s
-        i_half = self.noise.current_halfwidth_a(volts)
-        i_motor = motor_current_a[due] + rng.uniform(-1.0, 1.0, due.size) * i_half
-        i_esc = np.maximum(duty[due] * i_motor, 0.0)
+        d = duty[due]
+        noise = rng.uniform(-1.0, 1.0, (2, due.size))
+        w = omega_rad_s[due] + noise[0] * spec.speed_noise_rad_s
+        i_half = self.noise.current_halfwidth_a(d * bus_voltage_v)
+        i_motor = motor_current_a[due] + noise[1] * i_half
+        esc_ca = np.rint(np.maximum(d * i_motor, 0.0) * 100.0)
+        motor_ca = np.where(d > 0.02, np.rint(esc_ca / np.maximum(d, 0.02)), np.rint(i_motor * 100.0))
+        rpm = np.maximum(np.rint(w * RAD_S_TO_RPM), 0.0)
+        volt_cv = round(bus_voltage_v * 100.0)
         self._next_min_s = float(self.next_s.min())
         out = []
+        counts = self.counts
         for k, j in enumerate(due.tolist()):
             if not kept[k]:
                 continue
-            self.counts[j] += 1
-            esc_ca = round(float(i_esc[k]) * 100.0)
-            d = float(duty[j])
-            motor_ca = round(esc_ca / d) if d > 0.02 else round(float(i_motor[k]) * 100.0)
+            counts[j] += 1
             out.append(
                 EscSample(
-                    time_s=time_s,
-                    motor=j + 1,
-                    rpm=max(round(float(w[k]) * RAD_S_TO_RPM), 0),
-                    esc_current_ca=esc_ca,
-                    motor_current_ca=motor_ca,
-                    voltage_cv=round(bus_voltage_v * 100.0),
-                    temp_c=round(float(esc_temp_c[j])),
-                    motor_temp_c=round(float(motor_temp_c[j])),
-                    duty=d,
-                    count=int(self.counts[j]),
+                    time_s,
+                    j + 1,
+                    int(rpm[k]),
+                    int(esc_ca[k]),
+                    int(motor_ca[k]),
+                    volt_cv,
+                    round(float(esc_temp_c[j])),
+                    round(float(motor_temp_c[j])),
+                    float(d[k]),
+                    int(counts[j]),
                 )
             )
         return out

@@ -70,7 +70,7 @@ def faulty_steady_state(
     elif fault == "F1.1":  # a rubbing bar adds friction torque
         s = steady_state(params.replace(T_f=params.T_f + 0.05 * severity), v)
     elif fault == "F3.1":  # blades trimmed: the propeller load falls
-        s = steady_state(params.replace(C_p=params.C_p * max(1.0 - 0.85 * severity, 0.05)), v)
+        s = steady_state(params.replace(C_p=params.C_p * max(1.0 - 0.9 * severity, 0.05)), v)
     elif fault == "F4.1":  # one switch open: two phases share the current, a larger drop at high current
         s = steady_state(params.replace(R_ohm=params.R_ohm * (1.0 + 2.0 * severity)), v)
     elif fault == "F2.1":  # the motor stops; about 3 A flows
@@ -109,7 +109,9 @@ def testbed_run(
     blend = np.where(t < fault_at_s, 0.0, 1.0 - np.exp(-(t - fault_at_s) / time_constant_s))
     omega = healthy.omega_rad_s[0] + blend * (w_fault[0] - healthy.omega_rad_s[0])
     current = healthy.current_a[0] + blend * (i_fault[0] - healthy.current_a[0])
-    omega = omega + rng.uniform(-noise.speed_rad_s, noise.speed_rad_s, t.shape)
+    omega = np.abs(
+        omega + rng.uniform(-noise.speed_rad_s, noise.speed_rad_s, t.shape)
+    )  # an RPM sensor reads >= 0
     current = current + rng.uniform(-1.0, 1.0, t.shape) * noise.current_halfwidth_a(v)
     return {
         "time_s": t,

@@ -12,14 +12,43 @@ __all__ = ["READERS", "read"]
 
 
 def _read_csv(path: Path) -> TelemetryTable:
+    from .bench import bench_format, read_bench
     from .csv import read_csv
 
-    return read_csv(path)
+    return read_bench(path) if bench_format(path) else read_csv(path)
+
+
+def _read_bench(path: Path) -> TelemetryTable:
+    from .bench import read_bench
+
+    return read_bench(path)
+
+
+def _read_tlog(path: Path) -> TelemetryTable:
+    from .tlog import read_tlog
+
+    return read_tlog(path)
+
+
+def _read_dataflash(path: Path) -> TelemetryTable:
+    from .dataflash import read_dataflash
+
+    return read_dataflash(path)
+
+
+def _read_ulog(path: Path) -> TelemetryTable:
+    from .ulog import read_ulog
+
+    return read_ulog(path)
 
 
 #: Reader per lower-case file extension. Log readers register here as they are added.
 READERS: dict[str, Callable[[Path], TelemetryTable]] = {
     ".csv": _read_csv,
+    ".tlog": _read_tlog,
+    ".bin": _read_dataflash,
+    ".ulg": _read_ulog,
+    ".txt": _read_bench,
 }
 
 

@@ -50,8 +50,8 @@ class TelemetryTable:
                 )
             if name == "motor":
                 arr = arr.astype(np.int64)
-            elif arr.dtype.kind in "biuf":
-                arr = arr.astype(np.float64) if arr.dtype.kind != "b" else arr
+            elif arr.dtype.kind == "f" and arr.dtype != np.float64:
+                arr = arr.astype(np.float64)
             cols[name] = arr
         missing = [c for c in REQUIRED_COLUMNS if c not in cols]
         if missing:

@@ -1,0 +1,68 @@
+"""``mav-motor-health replay LOG... [--profile P] [--params FILE] [--out DIR] [--force] [--jobs N]``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from pathlib import Path
+
+from ..config import DEFAULT_MOTOR, load_motor_params, load_profile
+from ..replay import ReplayResult, collect_logs, print_verdicts, replay_log, replay_many
+
+DEFAULT_REPLAY_PROFILE = "flight"
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "replay",
+        help="replay flight logs (.tlog .bin .ulg .csv) through the diagnosis",
+        description="Reads ArduPilot .tlog/.bin, PX4 .ulg or the project's CSV and writes diagnosis.csv, "
+        "events.jsonl and report.html. One log: straight into DIR. Several logs or a folder: one "
+        "folder per log in DIR, replayed in parallel, plus fleet_summary.csv/.json.",
+    )
+    p.add_argument("logs", nargs="+", metavar="LOG", help="log files or folders (searched recursively)")
+    p.add_argument(
+        "--params",
+        default=DEFAULT_MOTOR,
+        metavar="FILE",
+        help=f"motor parameters TOML, or a name in params/motors (default {DEFAULT_MOTOR})",
+    )
+    p.add_argument(
+        "--profile",
+        default=DEFAULT_REPLAY_PROFILE,
+        metavar="P",
+        help=f"threshold profile: flight, testbed or a TOML file (default {DEFAULT_REPLAY_PROFILE})",
+    )
+    p.add_argument("--out", default="replay", metavar="DIR", help="output folder (default ./replay)")
+    p.add_argument("--force", action="store_true", help="replace the files of an existing output folder")
+    p.add_argument(
+        "--jobs", type=int, default=None, metavar="N", help="worker processes (default: CPU count)"
+    )
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    params, profile = load_motor_params(args.params), load_profile(args.profile)
+    logs = collect_logs(args.logs)
+    if len(logs) == 1 and not any(Path(a).is_dir() for a in args.logs):
+        result = replay_log(logs[0], args.out, params, profile, force=args.force, progress=sys.stderr)
+        print_verdicts(result)
+        return 0
+
+    def show(result: ReplayResult) -> None:
+        for note in result.warnings:
+            warnings.warn(note, stacklevel=1)
+        if result.error:
+            sys.stderr.write(f"\nmav-motor-health replay: error: {result.error}\n")
+
+    fleet = replay_many(
+        logs, args.out, params, profile, force=args.force, jobs=args.jobs, progress=sys.stderr, on_result=show
+    )
+    for result in fleet.results:
+        if not result.error:
+            print_verdicts(result)
+    print(
+        f"fleet summary: {args.out}/fleet_summary.csv ({len(fleet.results)} logs, {len(fleet.failed)} failed)"
+    )
+    return 1 if fleet.failed else 0

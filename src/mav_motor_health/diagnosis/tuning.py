@@ -1,0 +1,222 @@
+"""Tune a threshold profile on labelled flights (the ``tune`` command's core; pure numpy).
+
+The paper set its bands at twice the sensor noise seen on the testbed and split F2.1 from F4.2 at a
+current seen there. In flight the residuals of a healthy motor are wider (the input moves, the
+telemetry is late and quantised) and the stall currents depend on the battery. ``tune_profile`` reads
+those numbers off labelled flights instead:
+
+1. **Bands.** On healthy samples (motors without a fault, and the faulty motor before onset) that the
+   steady rule accepts and whose current is trusted, the residuals against the model are collected.
+   The speed band is ``margin ×`` the ``quantile`` of |ω − ω_model|; the current band is the same per bin
+   of input voltage, made non-decreasing in voltage, with the bins' centres as anchors.
+2. **Stall split.** The F2.1 and F4.2 currents after onset, below the stop speed, give one split per
+   flight, the midpoint between the two kinds' currents; where the flights cover several bus voltages
+   the split is fitted as ``a + b·(V_bus − V_ref)`` (a stalled motor's current scales with the voltage
+   the ESC applies), else held constant.
+3. **Persistence.** With the new bands, the longest run of each false raw state on healthy samples
+   sets that state's hold time (× ``margin``, at least ``min_hold_s``): what flickered on healthy motors
+   is never announced. The result is checked by diagnosing the flights again; if any false event
+   remains the bands are widened by 10 % and the procedure repeats.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..model.params import MotorParams
+from ..telemetry.table import TelemetryTable
+from .pipeline import diagnose
+from .plausibility import CURRENT_UNTRUSTED
+from .profile import PersistenceRule, ThresholdProfile
+from .states import MotorState
+
+__all__ = ["LabelledFlight", "TuneResult", "fault_masks", "tune_profile"]
+
+
+@dataclass(frozen=True)
+class LabelledFlight:
+    """A flight's telemetry and its ground truth (the simulator's sidecar: ``faults`` with kind, motor,
+    onset_s)."""
+
+    table: TelemetryTable
+    truth: Mapping[str, Any]
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class TuneResult:
+    profile: ThresholdProfile
+    report: dict[str, Any] = field(default_factory=dict)
+
+
+def fault_masks(
+    result: TelemetryTable, truth: Mapping[str, Any]
+) -> tuple[NDArray[np.bool_], NDArray[np.object_]]:
+    """Per row: healthy (no fault active on that motor) and the true fault label ('' where healthy)."""
+    n = len(result)
+    label = np.full(n, "", dtype=object)
+    for fault in truth.get("faults", []):
+        sel = (result["motor"] == int(fault["motor"])) & (result["time_s"] >= float(fault["onset_s"]))
+        end = fault.get("end_s")
+        if end is not None:
+            sel &= result["time_s"] < float(end)
+        label[sel] = fault["kind"]
+    return label == "", label
+
+
+def _quantile(x: NDArray[np.float64], q: float) -> float:
+    x = x[np.isfinite(x)]
+    return float(np.quantile(x, q)) if x.size else float("nan")
+
+
+def _longest_runs(result: TelemetryTable, healthy: NDArray[np.bool_]) -> dict[int, float]:
+    """Longest duration [s] of each raw state other than NORMAL over eligible healthy samples, per motor run."""
+    longest: dict[int, float] = {}
+    eligible = (result["steady"] | np.isin(result["state"], [MotorState.F2_1, MotorState.F4_2])) & healthy
+    for motor in result.motors():
+        sel = np.flatnonzero((result["motor"] == motor) & eligible)
+        if sel.size == 0:
+            continue
+        t, s = result["time_s"][sel], result["state"][sel].astype(np.int64)
+        edges = np.flatnonzero(np.diff(s)) + 1
+        starts = np.concatenate([[0], edges])
+        ends = np.concatenate([edges, [s.size]])
+        for a, b in zip(starts, ends):
+            code = int(s[a])
+            if code in (MotorState.NORMAL, MotorState.NO_DATA):
+                continue
+            # the run lasts until the next eligible sample with another state
+            stop = t[b] if b < s.size else t[b - 1]
+            longest[code] = max(longest.get(code, 0.0), float(stop - t[a]))
+    return longest
+
+
+def _false_events(result: TelemetryTable, healthy: NDArray[np.bool_]) -> int:
+    events = 0
+    for motor in result.motors():
+        sel = result["motor"] == motor
+        announced = result["announced"][sel].astype(np.int64)
+        ok = healthy[sel]
+        changed = np.flatnonzero(np.diff(announced) != 0) + 1
+        events += int(np.sum(ok[changed] & (announced[changed] != MotorState.NORMAL)))
+    return events
+
+
+def tune_profile(
+    flights: Sequence[LabelledFlight],
+    params: MotorParams | dict[int, MotorParams],
+    base: ThresholdProfile,
+    *,
+    quantile: float = 0.999,
+    margin: float = 1.25,
+    voltage_bins: int = 6,
+    min_hold_s: float = 0.1,
+    name: str = "flight",
+    max_rounds: int = 8,
+) -> TuneResult:
+    """Fit bands, stall split and persistence of ``base`` on labelled flights (see module doc)."""
+    if not flights:
+        raise ValueError("tune_profile needs at least one labelled flight")
+    results = [diagnose(f.table, params, base) for f in flights]
+    masks = [fault_masks(r, f.truth) for r, f in zip(results, flights)]
+
+    # 1. bands from healthy, steady, trusted samples
+    rw, ri, rv = [], [], []
+    for r, (healthy, _) in zip(results, masks):
+        use = healthy & r["steady"] & ((r["sensor_flags"] & CURRENT_UNTRUSTED) == 0)
+        use &= r["omega_model_rad_s"] >= base.stop_speed_rad_s
+        rw.append(np.abs(r["omega_rad_s"] - r["omega_model_rad_s"])[use])
+        ri.append(np.abs(r["current_a"] - r["current_model_a"])[use])
+        rv.append(r["voltage_v"][use])
+    res_w, res_i, volts = (np.concatenate(x) for x in (rw, ri, rv))
+    if res_w.size < 50:
+        raise ValueError(f"only {res_w.size} healthy steady samples: too few to tune bands")
+    speed_band = margin * _quantile(res_w, quantile)
+    edges = np.quantile(volts, np.linspace(0, 1, voltage_bins + 1))
+    anchors: list[tuple[float, float]] = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = (volts >= lo) & (volts <= hi)
+        if sel.sum() >= 20:
+            anchors.append((float(np.median(volts[sel])), margin * _quantile(res_i[sel], quantile)))
+    widths = np.maximum.accumulate([w for _, w in anchors])
+    band = tuple((round(v, 3), round(float(w), 4)) for (v, _), w in zip(anchors, widths))
+    band = tuple(dict(band).items())  # drop duplicate voltages (keeps the last, i.e. the widest)
+
+    # 2. stall split from F2.1 / F4.2 flights
+    stall: dict[str, list[tuple[float, float]]] = {"F2.1": [], "F4.2": []}
+    for r, (_, label) in zip(results, masks):
+        stopped = np.abs(r["omega_rad_s"]) < base.stop_speed_rad_s
+        bus = r.get("bus_voltage_v")
+        for kind in stall:
+            sel = (label == kind) & stopped & np.isfinite(r["current_a"])
+            if sel.sum() >= 5:
+                v_bus = float(np.nanmedian(bus[sel])) if bus is not None else float("nan")
+                stall[kind].append((v_bus, float(np.median(r["current_a"][sel]))))
+    split_a, per_v, ref_v = base.stall_split_a, base.stall_split_per_v, base.stall_split_ref_v
+    if stall["F2.1"] and stall["F4.2"]:
+        f21 = np.array(stall["F2.1"])
+        f42 = np.array(stall["F4.2"])
+        buses = np.concatenate([f21[:, 0], f42[:, 0]])
+        if np.all(np.isfinite(buses)) and np.ptp(buses) > 1.0:
+            # currents proportional to bus voltage: split = mean ratio × V_bus
+            ratio = 0.5 * (np.mean(f21[:, 1] / f21[:, 0]) + np.mean(f42[:, 1] / f42[:, 0]))
+            ref_v = float(np.median(buses))
+            split_a, per_v = ratio * ref_v, float(ratio)
+        else:
+            split_a = 0.5 * (float(np.max(f21[:, 1])) + float(np.min(f42[:, 1])))
+            per_v = 0.0
+
+    profile = replace(
+        base,
+        name=name,
+        speed_band_rad_s=round(speed_band, 3),
+        current_band_a=band,
+        stall_split_a=round(split_a, 3),
+        stall_split_per_v=round(per_v, 4),
+        stall_split_ref_v=round(ref_v, 3),
+    )
+    # 3. persistence from the longest false runs, then verify (widen the bands if needed)
+    rounds = []
+    for _ in range(max_rounds):
+        tuned = [diagnose(f.table, params, profile) for f in flights]
+        longest: dict[int, float] = {}
+        for r, (healthy, _) in zip(tuned, masks):
+            for code, dur in _longest_runs(r, healthy).items():
+                longest[code] = max(longest.get(code, 0.0), dur)
+        holds = tuple(
+            (MotorState(code).label, round(max(min_hold_s, margin * dur), 3))
+            for code, dur in sorted(longest.items())
+        )
+        profile = replace(
+            profile,
+            persistence=PersistenceRule(
+                default_announce_s=max(min_hold_s, base.persistence.default_announce_s),
+                clear_s=base.persistence.clear_s,
+                announce_s=holds,
+            ),
+        )
+        checked = [diagnose(f.table, params, profile) for f in flights]
+        false = sum(_false_events(r, healthy) for r, (healthy, _) in zip(checked, masks))
+        rounds.append({"speed_band_rad_s": profile.speed_band_rad_s, "false_events": false})
+        if false == 0:
+            break
+        profile = replace(
+            profile,
+            speed_band_rad_s=round(profile.speed_band_rad_s * 1.1, 3),
+            current_band_a=tuple((v, round(w * 1.1, 4)) for v, w in profile.current_band_a),
+        )
+    report = {
+        "flights": [f.name or f.table.source for f in flights],
+        "healthy_steady_samples": int(res_w.size),
+        "speed_residual_q": _quantile(res_w, quantile),
+        "quantile": quantile,
+        "margin": margin,
+        "stall_currents": {k: v for k, v in stall.items()},
+        "rounds": rounds,
+    }
+    return TuneResult(profile=profile, report=report)

@@ -1,0 +1,448 @@
+"""Replay flight logs through the diagnosis: log → telemetry table → the same core as the live agent → files.
+
+For one log, :func:`replay_log` writes into its output folder:
+
+* ``diagnosis.csv`` — one row per motor sample: ``time_s, motor, state, announced, steady, omega_rad_s,
+  omega_model_rad_s, current_a, current_model_a, voltage_v`` (states as labels, ``F3.1``...) and the
+  context columns the log had (throttle, bus voltage, battery, altitude...);
+* ``events.jsonl`` — one JSON object per change of a motor's announced state, with the evidence;
+* ``report.html`` — one self-contained page: verdict per motor, fault timeline, measured vs model.
+
+:func:`replay_many` replays many logs in worker processes (one folder per log) and writes a fleet summary
+(``fleet_summary.csv`` and ``.json``). An existing output folder is never overwritten without ``force``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import sys
+import time
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from .diagnosis.pipeline import DIAGNOSIS_COLUMNS, diagnose
+from .diagnosis.profile import ThresholdProfile
+from .diagnosis.states import MotorState
+from .errors import DataError, MotorHealthError
+from .model.params import MotorParams
+from .telemetry.table import TelemetryTable
+
+__all__ = [
+    "CONTEXT_COLUMNS",
+    "FleetResult",
+    "MotorVerdict",
+    "ReplayResult",
+    "collect_logs",
+    "events_from_diagnosis",
+    "motor_verdicts",
+    "replay_log",
+    "replay_many",
+]
+
+#: Columns copied into diagnosis.csv besides the diagnosis itself when the log has them: the two the
+#: motor voltage comes from (voltage_v = throttle × bus_voltage_v).
+CONTEXT_COLUMNS = ("throttle", "bus_voltage_v")
+#: A motor whose samples lack speed or current this often is reported as NO_DATA.
+NO_DATA_SHARE = 0.5
+#: A motor whose telemetry ends this long before the others' is reported as NO_DATA (telemetry lost).
+STALE_S = 5.0
+#: What a folder is searched for (a CSV is replayed only when named: folders hold many other CSVs).
+LOG_SUFFIXES = (".tlog", ".bin", ".ulg")
+OUTPUT_FILES = ("diagnosis.csv", "events.jsonl", "report.html")
+
+
+@dataclass(frozen=True)
+class MotorVerdict:
+    """What the replay concludes about one motor."""
+
+    motor: int
+    state: str  # label: NORMAL, F3.1, ..., NO_DATA
+    reason: str
+    first_fault_s: float | None
+    fault_time_s: float
+    final_state: str
+    samples: int
+    steady_samples: int
+    no_data_share: float
+
+    @property
+    def is_fault(self) -> bool:
+        return MotorState.from_label(self.state).is_fault
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """One replayed log: where its files are, the verdicts and the events."""
+
+    log: str
+    out_dir: str
+    format: str
+    duration_s: float
+    rows: int
+    verdicts: tuple[MotorVerdict, ...]
+    events: tuple[dict[str, Any], ...]
+    warnings: tuple[str, ...] = ()
+    elapsed_s: float = 0.0
+    error: str | None = None
+
+    def summary_row(self) -> dict[str, Any]:
+        faults = [v for v in self.verdicts if v.is_fault]
+        nodata = [v for v in self.verdicts if v.state == "NO_DATA"]
+        return {
+            "log": self.log,
+            "out_dir": self.out_dir,
+            "format": self.format,
+            "duration_s": round(self.duration_s, 3),
+            "rows": self.rows,
+            "motors": len(self.verdicts),
+            "verdict": "ERROR"
+            if self.error
+            else ("FAULT" if faults else ("NO_DATA" if nodata else "NORMAL")),
+            "faults": "; ".join(f"motor {v.motor} {v.state} from {v.first_fault_s:.1f} s" for v in faults),
+            "no_data_motors": " ".join(str(v.motor) for v in nodata),
+            "events": len(self.events),
+            "warnings": len(self.warnings),
+            "elapsed_s": round(self.elapsed_s, 3),
+            "error": self.error or "",
+        }
+
+
+@dataclass(frozen=True)
+class FleetResult:
+    out_dir: str
+    results: tuple[ReplayResult, ...] = field(default_factory=tuple)
+
+    @property
+    def failed(self) -> list[ReplayResult]:
+        return [r for r in self.results if r.error]
+
+
+class Progress:
+    """A one-line progress indicator on stderr that shows up only when the work takes a moment."""
+
+    def __init__(self, label: str, stream: TextIO | None = None, delay_s: float = 0.5) -> None:
+        self.label = label
+        self.stream = stream
+        self.start = time.monotonic()
+        self.delay_s = delay_s
+        self.shown = False
+
+    def update(self, done: int, total: int, what: str = "") -> None:
+        if self.stream is None or time.monotonic() - self.start < self.delay_s:
+            return
+        width = 24
+        filled = int(width * done / max(total, 1))
+        bar = "#" * filled + "-" * (width - filled)
+        self.stream.write(f"\r{self.label} [{bar}] {done}/{total} {what[:40]:40s}")
+        self.stream.flush()
+        self.shown = True
+
+    def close(self) -> None:
+        if self.shown and self.stream is not None:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def collect_logs(paths: Iterable[str | Path]) -> list[Path]:
+    """The log files named, with folders searched recursively for ``.tlog .bin .ulg`` files."""
+    found: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found += sorted(f for f in p.rglob("*") if f.is_file() and f.suffix.lower() in LOG_SUFFIXES)
+        else:
+            found.append(p)
+    if not found:
+        raise DataError("no log files found", where=", ".join(map(str, paths)))
+    return found
+
+
+def events_from_diagnosis(result: TelemetryTable) -> list[dict[str, Any]]:
+    """One event per change of a motor's announced state (the first sample starts from NORMAL)."""
+    events: list[dict[str, Any]] = []
+    motors = result["motor"]
+    announced = result["announced"].astype(np.int64)
+    change = np.zeros(len(result), dtype=bool)
+    previous = np.full(len(result), int(MotorState.NORMAL), dtype=np.int64)
+    if len(result):
+        first = np.ones(len(result), dtype=bool)
+        first[1:] = motors[1:] != motors[:-1]
+        previous[1:] = announced[:-1]
+        previous[first] = int(MotorState.NORMAL)
+        change = announced != previous
+    for i in np.flatnonzero(change).tolist():
+        events.append(
+            {
+                "time_s": _num(result["time_s"][i]),
+                "motor": int(motors[i]),
+                "state": MotorState(int(announced[i])).label,
+                "previous": MotorState(int(previous[i])).label,
+                "description": MotorState(int(announced[i])).description,
+                "evidence": {
+                    "omega_rad_s": _num(result["omega_rad_s"][i]),
+                    "omega_model_rad_s": _num(result["omega_model_rad_s"][i]),
+                    "current_a": _num(result["current_a"][i]),
+                    "current_model_a": _num(result["current_model_a"][i]),
+                    "voltage_v": _num(result["voltage_v"][i]),
+                    "raw_state": MotorState(int(result["state"][i])).label,
+                    "steady": bool(result["steady"][i]),
+                },
+            }
+        )
+    events.sort(key=lambda e: (e["time_s"], e["motor"]))
+    return events
+
+
+def _num(x: Any) -> float | None:
+    value = float(x)
+    return round(value, 6) if math.isfinite(value) else None
+
+
+def motor_verdicts(result: TelemetryTable, expected: Sequence[int] = ()) -> list[MotorVerdict]:
+    """The verdict per motor: NO_DATA if its telemetry is missing or stale, else its main announced fault."""
+    verdicts = []
+    log_end = float(np.max(result["time_s"])) if len(result) else 0.0
+    for motor in sorted(set(result.motors()) | set(expected)):
+        sel = result["motor"] == motor
+        n = int(sel.sum())
+        if n == 0:
+            verdicts.append(
+                MotorVerdict(
+                    motor,
+                    "NO_DATA",
+                    "no ESC telemetry for this motor in the log",
+                    None,
+                    0.0,
+                    "NO_DATA",
+                    0,
+                    0,
+                    1.0,
+                )
+            )
+            continue
+        t = result["time_s"][sel]
+        raw = result["state"][sel].astype(np.int64)
+        announced = result["announced"][sel].astype(np.int64)
+        steady = int(result["steady"][sel].sum())
+        no_data = float(np.mean(raw == MotorState.NO_DATA))
+        dt = np.diff(t, append=t[-1])
+        durations = np.bincount(announced, weights=dt, minlength=len(MotorState))
+        faults = [s for s in MotorState if s.is_fault and durations[s] > 0]
+        final = MotorState(int(announced[-1])).label
+        if no_data > NO_DATA_SHARE:
+            state, reason = (
+                "NO_DATA",
+                f"speed or current missing or stale in {100 * no_data:.0f} % of samples",
+            )
+            first, fault_time = None, 0.0
+        elif log_end - t[-1] > STALE_S:
+            state, reason = (
+                "NO_DATA",
+                f"telemetry stops at {t[-1]:.1f} s, {log_end - t[-1]:.1f} s before the others",
+            )
+            first, fault_time = None, 0.0
+        elif faults:
+            main = max(faults, key=lambda s: durations[s])
+            first = float(t[np.argmax(announced == main)])
+            fault_time = float(durations[main])
+            state = main.label
+            reason = f"{main.description} announced from {first:.1f} s, {fault_time:.1f} s in total"
+        else:
+            state, reason, first, fault_time = "NORMAL", "no fault announced", None, 0.0
+        verdicts.append(MotorVerdict(motor, state, reason, first, fault_time, final, n, steady, no_data))
+    return verdicts
+
+
+def _check_out_dir(out_dir: Path, force: bool) -> None:
+    """Refuse an output folder that exists with files in it (unless ``force``) or that is a file."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise DataError("exists and is not a folder", path=out_dir)
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not force:
+        raise DataError(
+            "output folder exists already; not overwritten (use --force to replace its files)", path=out_dir
+        )
+
+
+def write_diagnosis_csv(result: TelemetryTable, path: Path) -> None:
+    """diagnosis.csv: time to the µs, other numbers to 4 decimals, states as labels (``F3.1``)."""
+    from .replay_csv import Column, write_csv_columns
+
+    labels = [s.label for s in MotorState]
+    extra = [c for c in CONTEXT_COLUMNS if c in result]
+    columns: list[Column] = []
+    for name in [*DIAGNOSIS_COLUMNS, *extra]:
+        values = result[name]
+        if name in ("state", "announced"):
+            columns.append((name, values, labels))
+        elif name in ("motor", "steady"):
+            columns.append((name, values.astype(np.int64), 0))
+        else:
+            columns.append((name, values, 6 if name == "time_s" else 4))
+    write_csv_columns(path, columns)
+
+
+def replay_log(
+    log: str | Path,
+    out_dir: str | Path,
+    params: MotorParams | dict[int, MotorParams],
+    profile: ThresholdProfile,
+    *,
+    force: bool = False,
+    progress: TextIO | None = None,
+    reissue_warnings: bool = True,
+) -> ReplayResult:
+    """Replay one log into ``out_dir`` (diagnosis.csv, events.jsonl, report.html)."""
+    from .replay_report import render_report
+    from .telemetry import sources
+
+    started = time.monotonic()
+    log, out_dir = Path(log), Path(out_dir)
+    _check_out_dir(out_dir, force)
+    bar = Progress(log.name, progress)
+    bar.update(0, 4, "reading")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        table = sources.read(log)
+    notes = tuple(str(w.message) for w in caught)
+    if reissue_warnings:
+        for w in caught:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if len(table) == 0:
+        raise DataError("the log's ESC telemetry has no samples for any motor", path=log)
+    bar.update(1, 4, f"diagnosing {len(table.motors())} motors")
+    result = diagnose(table, params, profile)  # the same core the live agent runs
+    expected = [int(m) for m in table.meta.get("motors", [])]
+    verdicts = motor_verdicts(result, expected)
+    events = events_from_diagnosis(result)
+    bar.update(2, 4, "writing diagnosis.csv")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_diagnosis_csv(result, out_dir / "diagnosis.csv")
+    with (out_dir / "events.jsonl").open("w", encoding="utf-8") as handle:
+        for event in events:
+            handle.write(json.dumps(event) + "\n")
+    bar.update(3, 4, "writing report.html")
+    meta = dict(table.meta)
+    duration = float(meta.get("duration_s") or (np.ptp(table["time_s"]) if len(table) else 0.0))
+    html = render_report(log, result, verdicts, events, profile, params, meta, notes)
+    (out_dir / "report.html").write_text(html, encoding="utf-8")
+    bar.update(4, 4, "done")
+    bar.close()
+    return ReplayResult(
+        log=str(log),
+        out_dir=str(out_dir),
+        format=str(meta.get("format", log.suffix.lstrip("."))),
+        duration_s=duration,
+        rows=len(result),
+        verdicts=tuple(verdicts),
+        events=tuple(events),
+        warnings=notes,
+        elapsed_s=time.monotonic() - started,
+    )
+
+
+def _replay_worker(
+    log: str,
+    out_dir: str,
+    params: MotorParams | dict[int, MotorParams],
+    profile: ThresholdProfile,
+    force: bool,
+) -> ReplayResult:
+    started = time.monotonic()
+    try:
+        return replay_log(log, out_dir, params, profile, force=force, reissue_warnings=False)
+    except MotorHealthError as exc:
+        return ReplayResult(
+            log,
+            out_dir,
+            Path(log).suffix.lstrip("."),
+            0.0,
+            0,
+            (),
+            (),
+            (),
+            time.monotonic() - started,
+            str(exc),
+        )
+
+
+def _folder_names(logs: Sequence[Path]) -> list[str]:
+    names: list[str] = []
+    for log in logs:
+        base = log.name.replace(".", "_")
+        name, k = base, 2
+        while name in names:
+            name, k = f"{base}-{k}", k + 1
+        names.append(name)
+    return names
+
+
+def replay_many(
+    logs: Sequence[str | Path],
+    out_dir: str | Path,
+    params: MotorParams | dict[int, MotorParams],
+    profile: ThresholdProfile,
+    *,
+    force: bool = False,
+    jobs: int | None = None,
+    progress: TextIO | None = None,
+    on_result: Callable[[ReplayResult], None] | None = None,
+) -> FleetResult:
+    """Replay many logs in worker processes: ``out_dir/<log name>/`` each, plus the fleet summary."""
+    paths = [Path(p) for p in logs]
+    out_dir = Path(out_dir)
+    _check_out_dir(out_dir, force)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    folders = [out_dir / name for name in _folder_names(paths)]
+    jobs = max(1, min(jobs or (os.cpu_count() or 1), len(paths)))
+    results: list[ReplayResult] = []
+    bar = Progress(f"replay {len(paths)} logs", progress, delay_s=0.0)
+    bar.update(0, len(paths))
+    if jobs == 1:
+        for path, folder in zip(paths, folders):
+            results.append(_replay_worker(str(path), str(folder), params, profile, force))
+            if on_result:
+                on_result(results[-1])
+            bar.update(len(results), len(paths), path.name)
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            futures = [
+                pool.submit(_replay_worker, str(p), str(f), params, profile, force)
+                for p, f in zip(paths, folders)
+            ]
+            for future in as_completed(futures):
+                results.append(future.result())
+                if on_result:
+                    on_result(results[-1])
+                bar.update(len(results), len(paths), Path(results[-1].log).name)
+    bar.close()
+    order = {str(p): i for i, p in enumerate(paths)}
+    results.sort(key=lambda r: order[r.log])
+    write_fleet_summary(out_dir, results)
+    return FleetResult(str(out_dir), tuple(results))
+
+
+def write_fleet_summary(out_dir: Path, results: Sequence[ReplayResult]) -> None:
+    rows = [r.summary_row() for r in results]
+    with (out_dir / "fleet_summary.csv").open("w", encoding="utf-8", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]) if rows else ["log"])
+        writer.writeheader()
+        writer.writerows(rows)
+    detail = [
+        {**r.summary_row(), "verdicts": [asdict(v) for v in r.verdicts], "warning_messages": list(r.warnings)}
+        for r in results
+    ]
+    (out_dir / "fleet_summary.json").write_text(json.dumps(detail, indent=2), encoding="utf-8")
+
+
+def print_verdicts(result: ReplayResult, stream: TextIO = sys.stdout) -> None:
+    stream.write(f"{result.log}: {result.rows} samples, {result.duration_s:.1f} s -> {result.out_dir}\n")
+    for v in result.verdicts:
+        stream.write(f"  motor {v.motor}: {v.state:8s} {v.reason}\n")

@@ -1,0 +1,317 @@
+"""ArduPilot DataFlash logs (``.bin``), parsed from their own FMT records with numpy.
+
+A record is ``0xA3 0x95 <type>`` followed by the payload laid out as the ``FMT`` record for ``<type>``
+says (FMT records may appear anywhere: ArduPilot writes them as message types first occur). Reading:
+
+1. one numpy pass finds every ``A3 95`` pair; the ``FMT`` records (type 128) among them give each type's
+   length, field names and format characters;
+2. each candidate's length gives the next record; :func:`~._logscan.follow_chain` keeps the chain and
+   resynchronises after damage (DataFlash has no checksum: a record counts as valid when it starts with
+   the header, has a known type and is followed by another valid record);
+3. the records of the types used are gathered into one byte array per type and viewed through a numpy
+   structured dtype; scaled formats are scaled as pymavlink's DFReader does (``c C e E`` ×0.01, ``L`` ×1e-7).
+
+Records used: ``ESC`` (RPM is mechanical: ArduPilot divides the ESC's eRPM by the pole pairs before
+logging), ``RCOU`` (µs), ``BAT``, ``BARO``, ``CTUN``, ``POS``, ``PARM``, ``MSG``. ESC instance ``i`` is
+servo output ``i+1``, so its motor follows from ``SERVO{i+1}_FUNCTION`` (see :mod:`.mavlink_esc`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import LogFormatError
+from . import mavlink_esc
+from ._logscan import Damage, follow_chain, gather_rows
+from .assemble import EscSamples, Series, motor_table, no_esc_error
+from .table import TelemetryTable
+
+__all__ = ["DataflashLog", "read_dataflash", "read_records"]
+
+HEAD = (0xA3, 0x95)
+FMT_TYPE = 128
+FMT_LENGTH = 89
+USED_RECORDS = ("ESC", "RCOU", "BAT", "BARO", "CTUN", "POS", "PARM", "MSG")
+
+#: DataFlash format character → (numpy dtype, scale applied on reading), as pymavlink's DFReader.
+FORMAT_CHARS: dict[str, tuple[str, float | None]] = {
+    "a": ("(32,)<i2", None),
+    "b": ("i1", None),
+    "B": ("u1", None),
+    "g": ("<f2", None),
+    "h": ("<i2", None),
+    "H": ("<u2", None),
+    "i": ("<i4", None),
+    "I": ("<u4", None),
+    "f": ("<f4", None),
+    "d": ("<f8", None),
+    "n": ("S4", None),
+    "N": ("S16", None),
+    "Z": ("S64", None),
+    "c": ("<i2", 0.01),
+    "C": ("<u2", 0.01),
+    "e": ("<i4", 0.01),
+    "E": ("<u4", 0.01),
+    "L": ("<i4", 1.0e-7),
+    "M": ("i1", None),
+    "q": ("<i8", None),
+    "Q": ("<u8", None),
+}
+
+
+@dataclass(frozen=True)
+class RecordFormat:
+    """One FMT record: the layout of a message type."""
+
+    type: int
+    name: str
+    length: int  # including the 3 header bytes
+    format: str
+    columns: tuple[str, ...]
+
+    def dtype(self) -> np.dtype | None:
+        """The payload's numpy dtype, or None when the FMT is inconsistent (a damaged FMT record)."""
+        if len(self.format) != len(self.columns) or any(c not in FORMAT_CHARS for c in self.format):
+            return None
+        names = [c or f"field{i}" for i, c in enumerate(self.columns)]
+        if len(set(names)) != len(names):
+            return None
+        dtype = np.dtype([(n, FORMAT_CHARS[c][0]) for n, c in zip(names, self.format)])
+        return dtype if dtype.itemsize == self.length - 3 else None
+
+
+@dataclass
+class DataflashLog:
+    """Decoded records of a DataFlash log: per type name, a dict of column arrays (scaled as DFReader),
+    and the byte offset of every record."""
+
+    records: dict[str, dict[str, NDArray[Any]]] = field(default_factory=dict)
+    formats: dict[str, RecordFormat] = field(default_factory=dict)
+    counts: dict[str, int] = field(default_factory=dict)
+    offsets: dict[str, NDArray[np.int64]] = field(default_factory=dict)
+    damage: Damage = field(default_factory=Damage)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.records and len(next(iter(self.records[str(name)].values()), ())) > 0
+
+    def __getitem__(self, name: str) -> dict[str, NDArray[Any]]:
+        return self.records[name]
+
+
+def _text(raw: bytes) -> str:
+    return raw.split(b"\0", 1)[0].decode("ascii", "replace")
+
+
+def _scan_formats(data: NDArray[np.uint8], heads: NDArray[np.int64]) -> dict[int, RecordFormat]:
+    """Every FMT record in the file (the first consistent one wins per type)."""
+    fmt_at = heads[(data[heads + 2] == FMT_TYPE) & (heads + FMT_LENGTH <= len(data))]
+    formats: dict[int, RecordFormat] = {
+        FMT_TYPE: RecordFormat(
+            FMT_TYPE, "FMT", FMT_LENGTH, "BBnNZ", ("Type", "Length", "Name", "Format", "Columns")
+        )
+    }
+    if len(fmt_at) == 0:
+        return formats
+    rows = gather_rows(data, fmt_at + 3, FMT_LENGTH - 3)
+    recs = rows.view(
+        np.dtype([("Type", "u1"), ("Length", "u1"), ("Name", "S4"), ("Format", "S16"), ("Columns", "S64")])
+    ).ravel()
+    seen: set[tuple[int, int, bytes, bytes, bytes]] = set()
+    for r in recs.tolist():
+        if r in seen:
+            continue
+        seen.add(r)
+        ftype, length, name, fmt, cols = r
+        try:
+            candidate = RecordFormat(
+                int(ftype),
+                name.split(b"\0", 1)[0].decode("ascii"),
+                int(length),
+                fmt.split(b"\0", 1)[0].decode("ascii"),
+                tuple(cols.split(b"\0", 1)[0].decode("ascii").split(",")),
+            )
+        except UnicodeDecodeError:
+            continue  # a damaged FMT record (or A3 95 80 inside a payload)
+        if ftype == FMT_TYPE or candidate.dtype() is None or not candidate.name.isidentifier():
+            continue
+        formats.setdefault(int(ftype), candidate)
+    return formats
+
+
+def read_records(path: str | Path, names: Iterable[str] = USED_RECORDS, *, warn: bool = True) -> DataflashLog:
+    """Decode the named record types of a DataFlash log, in file order."""
+    path = Path(path)
+    try:
+        mapped = np.memmap(path, dtype=np.uint8, mode="r") if path.stat().st_size else np.zeros(0, np.uint8)
+    except (OSError, ValueError) as exc:
+        raise LogFormatError(f"cannot read: {exc}", path=path) from exc
+    data: NDArray[np.uint8] = mapped.view(np.ndarray)
+    size = len(data)
+    out = DataflashLog()
+    if size < 3:
+        raise LogFormatError("empty or too short for a DataFlash log", path=path, offset=0)
+    heads = np.flatnonzero(data[:-2] == HEAD[0]).astype(np.int64)
+    heads = heads[data[heads + 1] == HEAD[1]]
+    formats = _scan_formats(data, heads)
+    lengths = np.zeros(256, dtype=np.int64)
+    for ftype, fmt in formats.items():
+        lengths[ftype] = fmt.length
+    types = data[heads + 2]
+    rec_len = lengths[types]
+    heads, types, rec_len = heads[rec_len > 0], types[rec_len > 0], rec_len[rec_len > 0]
+    if len(heads) == 0:
+        raise LogFormatError(
+            "no DataFlash record found (no A3 95 header with a known FMT)", path=path, offset=0
+        )
+    next_start = heads + rec_len
+
+    def accept(k: int, links: int = 2) -> bool:
+        """A resynchronisation point: a header whose next ``links`` successors are headers too."""
+        for _ in range(links):
+            nxt = int(next_start[k])
+            if nxt >= size - 2:
+                return nxt <= size
+            k = int(np.searchsorted(heads, nxt))
+            if k >= len(heads) or heads[k] != nxt:
+                return False
+        return True
+
+    first = 0
+    while first < len(heads) and heads[first] != 0 and not accept(first):
+        first += 1
+    chain = follow_chain(heads, next_start, size, accept, out.damage, first=first, tail_slack=2)
+    chain_types = types[chain]
+    by_name = {fmt.name: fmt for fmt in formats.values()}
+    out.formats = by_name
+    type_counts = np.bincount(chain_types, minlength=256)
+    for ftype in np.flatnonzero(type_counts).tolist():
+        if ftype in formats:
+            out.counts[formats[ftype].name] = int(type_counts[ftype])
+    for name in names:
+        found = by_name.get(name)
+        if found is None:
+            continue
+        fmt = found
+        dtype = fmt.dtype()
+        assert dtype is not None
+        at = heads[chain[chain_types == fmt.type]]
+        recs = gather_rows(data, at + 3, fmt.length - 3).view(dtype).ravel()
+        columns: dict[str, NDArray[Any]] = {}
+        for col, char in zip(dtype.names or (), fmt.format):
+            scale = FORMAT_CHARS[char][1]
+            values = recs[col]
+            # Divide by 1/scale as DFReader does (more accurate than multiplying by 0.01 or 1e-7).
+            columns[col] = values / (1.0 / scale) if scale is not None else values.copy()
+        out.records[name] = columns
+        out.offsets[name] = at
+    if warn:
+        out.damage.warn(path, "records")
+    del data, mapped
+    return out
+
+
+def _first_instance(rec: dict[str, NDArray[Any]], key: str) -> NDArray[np.bool_]:
+    if key not in rec:
+        return np.ones(len(rec["TimeUS"]), dtype=bool)
+    inst = rec[key]
+    return inst == (inst.min() if len(inst) else 0)
+
+
+def read_dataflash(path: str | Path) -> TelemetryTable:
+    """Read a ``.bin`` DataFlash log into the telemetry table (one row per ESC record)."""
+    path = Path(path)
+    log = read_records(path)
+    if "ESC" not in log:
+        raise no_esc_error(
+            path,
+            "ArduPilot DataFlash (.bin)",
+            log.counts,
+            "ESC records: set LOG_BITMASK to log ESC telemetry",
+        )
+    times = [log[n]["TimeUS"] for n in ("ESC", "RCOU", "BAT", "PARM") if n in log]
+    origin_us = int(min(int(t.min()) for t in times if len(t)))
+
+    def seconds(rec: dict[str, NDArray[Any]]) -> NDArray[np.float64]:
+        return (rec["TimeUS"].astype(np.int64) - origin_us) / 1e6
+
+    params: dict[str, float] = {}
+    if "PARM" in log:
+        for name, value in zip(log["PARM"]["Name"].tolist(), log["PARM"]["Value"].tolist()):
+            params[_text(name)] = float(value)
+    esc = log["ESC"]
+    temp = esc["Temp"].astype(float)
+    samples = EscSamples(
+        seconds(esc),
+        esc["Instance"].astype(np.int64),
+        esc["RPM"].astype(float) * mavlink_esc.RPM_TO_RAD_S,
+        esc["Curr"].astype(float),
+        esc["Volt"].astype(float),
+        temp,
+        esc["MotTemp"].astype(float) if "MotTemp" in esc else None,
+    )
+    slots = sorted(set(samples.slot.tolist()))
+    motor_of_slot = {s: mavlink_esc.motor_for_output(s + 1, params) for s in slots}
+    commands: dict[int, Series] = {}
+    if "RCOU" in log:
+        rec = log["RCOU"]
+        t = seconds(rec)
+        low, high = mavlink_esc.pwm_range(params)
+        for output in range(1, 17):
+            motor = mavlink_esc.motor_for_output(output, params)
+            if motor is None or motor in commands or f"C{output}" not in rec:
+                continue
+            commands[motor] = (t, mavlink_esc.throttle_from_pwm(rec[f"C{output}"].astype(float), low, high))
+    context: dict[str, Series] = {}
+    battery: Series | None = None
+    if "BAT" in log:
+        rec = log["BAT"]
+        sel = _first_instance(rec, "Inst" if "Inst" in rec else "Instance")
+        t = seconds(rec)[sel]
+        battery = (t, rec["Volt"][sel].astype(float))
+        context["battery_voltage_v"] = battery
+        context["battery_current_a"] = (t, rec["Curr"][sel].astype(float))
+    if "CTUN" in log:
+        rec = log["CTUN"]
+        context["alt_m"] = (seconds(rec), rec["Alt"].astype(float))
+        if "CRt" in rec:
+            context["climb_m_s"] = (seconds(rec), rec["CRt"].astype(float) / 100.0)  # cm/s in CTUN
+    elif "POS" in log:
+        rec = log["POS"]
+        context["alt_m"] = (seconds(rec), rec["RelHomeAlt"].astype(float))
+    if "BARO" in log:
+        rec = log["BARO"]
+        sel = _first_instance(rec, "I")
+        context["air_temp_c"] = (seconds(rec)[sel], rec["Temp"][sel].astype(float))
+        if "climb_m_s" not in context and "CRt" in rec:
+            context["climb_m_s"] = (seconds(rec)[sel], rec["CRt"][sel].astype(float))
+    vehicle_info: dict[str, Any] = {}
+    if "MSG" in log:
+        texts = [_text(m) for m in log["MSG"]["Message"].tolist()]
+        firmware = next((m for m in texts if m.startswith(("Ardu", "Copter", "APM", "PX4"))), None)
+        if firmware:
+            vehicle_info["firmware"] = firmware
+        vehicle_info["messages"] = texts[:50]
+    for key in ("FRAME_CLASS", "FRAME_TYPE"):
+        if key in params:
+            vehicle_info[key.lower()] = int(params[key])
+    end_us = max(
+        int(log[n]["TimeUS"].max()) for n in log.records if "TimeUS" in log[n] and len(log[n]["TimeUS"])
+    )
+    meta = {
+        "format": "dataflash",
+        "params": params,
+        "vehicle": vehicle_info,
+        "motors": mavlink_esc.expected_motors(params) or sorted({m for m in motor_of_slot.values() if m}),
+        "record_counts": dict(log.counts),
+        "time_origin_boot_s": origin_us / 1e6,
+        "duration_s": (end_us - origin_us) / 1e6,
+        "damage": log.damage.to_dict(),
+        "pwm_range_us": list(mavlink_esc.pwm_range(params)),
+    }
+    return motor_table(path, samples, motor_of_slot, commands, context, meta, battery)

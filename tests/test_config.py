@@ -1,0 +1,112 @@
+"""TOML loading: bundled files load, bad files get one clear error naming file, key and expectation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from mav_motor_health.config import dump_motor_params, load_motor_params, load_profile
+from mav_motor_health.diagnosis.profile import ThresholdProfile
+from mav_motor_health.errors import ConfigError
+
+
+def test_bundled_files_load() -> None:
+    motor = load_motor_params("paper_x2212")
+    assert (motor.R_ohm, motor.k_e, motor.C_p, motor.B, motor.T_f, motor.k) == (
+        0.165,
+        0.00975,
+        1.692e-10,
+        1.275e-7,
+        4.606e-10,
+        3.0,
+    )
+    testbed = load_profile("testbed")
+    flight = load_profile("flight")
+    assert testbed.speed_band_rad_s == 20.0 and testbed.stop_speed_rad_s == 100.0
+    assert testbed.stall_split_a == 6.0 and testbed.current_band_a == ((4.0, 0.25), (11.0, 2.5))
+    assert flight.name == "flight"
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "x.toml"
+    path.write_text(text)
+    return path
+
+
+MOTOR = "[motor]\nR_ohm = 0.1\nk_e = 0.01\nC_p = 1e-10\n"
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "expected"),
+    [
+        ("[motor]\nk_e = 0.01\nC_p = 1e-10\n", "motor.R_ohm", "a number ohm"),
+        (MOTOR.replace("0.1", '"fast"'), "motor.R_ohm", "a number ohm"),
+        (MOTOR.replace("R_ohm = 0.1", "R_ohm = -1"), "motor.R_ohm", ">= 1e-06 ohm"),
+        (MOTOR + "colour = 3\n", "motor", "only"),
+        (MOTOR + "k = 8\n", "motor.k", "between 0.5 and 6.0"),
+        (MOTOR + "[extra]\n", None, "only"),
+    ],
+)
+def test_bad_motor_files(tmp_path: Path, text: str, key: str | None, expected: str) -> None:
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError) as info:
+        load_motor_params(path)
+    err = info.value
+    assert err.path == path and err.key == key
+    assert expected in str(err) and str(path) in str(err)
+
+
+def test_not_toml_and_missing(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_motor_params(write(tmp_path, "[motor\n"))
+    with pytest.raises(ConfigError, match="file not found"):
+        load_motor_params(tmp_path / "nope.toml")
+    with pytest.raises(ConfigError, match="no profile named 'windy'"):
+        load_profile("windy")
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ("[profile]\ncurrent_band_a = [[4, 0.25], [3, 2.5]]\n", "profile.current_band_a"),
+        ("[profile]\ncurrent_band_a = [4, 0.25]\n", "profile.current_band_a"),
+        ("[profile]\nspeed_band_rad_s = -2\n", "profile.speed_band_rad_s"),
+        ('[persistence.announce_s]\n"F9.9" = 0.2\n', "persistence.announce_s.F9.9"),
+        ("[steady]\nsettle = 0.2\n", "steady"),
+    ],
+)
+def test_bad_profiles(tmp_path: Path, text: str, key: str) -> None:
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError) as info:
+        load_profile(path)
+    assert info.value.key == key and info.value.path == path
+
+
+def test_dump_round_trip(tmp_path: Path, paper_motor) -> None:
+    with_effects = paper_motor.replace(
+        name='a "quoted" name', effects=(("winding_temp", (("alpha", 0.0039),)),)
+    )
+    path = write(tmp_path, dump_motor_params(with_effects, {"fitted_from": "bench.csv"}))
+    assert load_motor_params(path) == with_effects
+
+
+def test_profile_dump_round_trip(tmp_path: Path) -> None:
+    from mav_motor_health.config import dump_profile
+    from mav_motor_health.diagnosis.profile import PersistenceRule
+
+    profile = load_profile("flight")
+    tuned = ThresholdProfile(
+        name="tuned",
+        description="tuned on x",
+        speed_band_rad_s=31.5,
+        current_band_a=((5.0, 0.4), (9.0, 1.1), (16.0, 2.0)),
+        stall_split_a=5.5,
+        stall_split_per_v=0.3,
+        stall_split_ref_v=15.0,
+        steady=profile.steady,
+        persistence=PersistenceRule(0.2, (("F4.1", 0.35), ("F2.1", 0.05)), 0.6),
+        plausibility=profile.plausibility,
+    )
+    path = write(tmp_path, dump_profile(tuned, {"tuned_on": "3 flights"}))
+    assert load_profile(path) == tuned

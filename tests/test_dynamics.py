@@ -1,0 +1,76 @@
+"""The first-order response: exact steps on irregular samples, vectorised = looped = streamed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mav_motor_health.model import MotorParams
+from mav_motor_health.model.dynamics import first_order_response, time_constant_s
+
+
+def looped(t, x, tau):
+    y = np.empty(len(t))
+    for n in range(len(t)):
+        if n == 0:
+            y[n] = x[n]
+            continue
+        a = np.exp(-(t[n] - t[n - 1]) / tau[n])
+        y[n] = a * y[n - 1] + (1 - a) * 0.5 * (x[n - 1] + x[n])
+    return y
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 3000))
+def test_vectorised_equals_loop_and_streaming(seed, n) -> None:
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.001, 0.2, n))
+    x = 500 + np.cumsum(rng.normal(0, 20, n))
+    tau = rng.uniform(0.002, 0.3, n)
+    y, carry = first_order_response(t, x, tau)
+    np.testing.assert_allclose(y, looped(t, x, tau), rtol=1e-9, atol=1e-9)
+    cut = n // 3
+    a, c = first_order_response(t[:cut], x[:cut], tau[:cut])
+    b, _ = first_order_response(t[cut:], x[cut:], tau[cut:], c)
+    np.testing.assert_allclose(np.concatenate([a, b]), y, rtol=1e-9, atol=1e-9)
+    assert carry.output == pytest.approx(y[-1])
+
+
+def test_step_response_reaches_63_percent_after_one_time_constant() -> None:
+    t = np.arange(0, 1.0, 0.001)
+    x = np.where(t < 0.1, 0.0, 1.0)
+    y, _ = first_order_response(t, x, 0.05)
+    assert y[np.searchsorted(t, 0.15)] == pytest.approx(1 - np.exp(-1), abs=0.02)
+
+
+def test_long_series_does_not_underflow() -> None:
+    t = np.arange(0, 3600, 0.02)  # an hour at 50 Hz, ~2.4e6 time constants
+    x = np.sin(t)
+    y, _ = first_order_response(t, x, 0.01)
+    assert np.all(np.isfinite(y)) and np.max(np.abs(y - x)) < 0.05
+
+
+def test_missing_input_holds_and_no_inertia_means_no_lag() -> None:
+    t = np.arange(5) * 0.1
+    y, _ = first_order_response(t, [1.0, 2.0, np.nan, np.nan, 2.0], 0.1)
+    assert y[2] == y[3] == y[1]
+    y2, _ = first_order_response(t, [1.0, 2.0, 3.0, 4.0, 5.0], np.nan)
+    np.testing.assert_allclose(y2, [1, 2, 3, 4, 5])
+
+
+def test_time_constant_of_the_paper_motor(paper_motor: MotorParams) -> None:
+    tau = time_constant_s(paper_motor, [0.0, 600.0])
+    # J / (k_e²/R + B) at rest, stiffer (faster) at speed
+    assert tau[0] == pytest.approx(paper_motor.J_kg_m2 / (0.00975**2 / 0.165 + 1.275e-7), rel=1e-6)
+    assert 0.01 < tau[1] < tau[0]
+    assert np.isnan(time_constant_s(paper_motor.replace(J_kg_m2=None), 100.0))
+
+
+def test_undefined_start_recovers_at_the_first_finite_target() -> None:
+    t = np.arange(6) * 0.1
+    y, carry = first_order_response(t[:2], [np.nan, np.nan], 0.1)
+    assert np.isnan(y).all()
+    y2, _ = first_order_response(t[2:], [5.0, 5.0, 6.0, 6.0], 0.1, carry)
+    assert y2[0] == 5.0 and y2[1] == 5.0 and 5.0 < y2[2] < 6.0

@@ -1,0 +1,187 @@
+"""Plausibility checks, the speed-only tree, the dynamic (flight) steady rule and the ESC mapping."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mav_motor_health.diagnosis import MotorState, StreamingDiagnoser, ThresholdProfile, classify, diagnose
+from mav_motor_health.diagnosis.plausibility import (
+    PlausibilityRule,
+    SensorIssue,
+    check_motor,
+    stuck_mask,
+    sum_mismatch,
+)
+from mav_motor_health.diagnosis.profile import SteadyRule
+from mav_motor_health.model import steady_state
+from mav_motor_health.model.dynamics import first_order_response, time_constant_s
+from mav_motor_health.model.esc import motor_current_a, motor_voltage_v
+from mav_motor_health.telemetry import TelemetryTable
+
+RULE = PlausibilityRule()
+
+
+def test_esc_mapping_round_trip() -> None:
+    duty = np.array([0.0, 0.02, 0.5, 1.0, 1.2])
+    np.testing.assert_allclose(motor_voltage_v(duty, 16.0), [0, 0.32, 8, 16, 16])
+    i = motor_current_a([0.1, 0.1, 5.0, 10.0, 10.0], duty)
+    assert np.isnan(i[0]) and np.isnan(i[1])
+    np.testing.assert_allclose(i[2:], [10.0, 10.0, 10.0])
+
+
+def test_constant_current_while_the_command_moves_is_stuck() -> None:
+    t = np.arange(0, 10, 0.1)
+    command = 0.5 + 0.1 * np.sin(t)
+    stuck, _ = stuck_mask(RULE, t, np.full(t.size, 0.80), command)
+    assert not stuck[t < 2.0].any() and stuck[t >= 2.5].all()
+    # a real, noisy sensor is not stuck; a constant current at constant command is not either
+    rng = np.random.default_rng(0)
+    noisy, _ = stuck_mask(RULE, t, np.round(5 + rng.normal(0, 0.05, t.size), 2), command)
+    assert not noisy.any()
+    idle, _ = stuck_mask(RULE, t, np.zeros(t.size), np.zeros(t.size))
+    assert not idle.any()
+
+
+def test_stuck_carry_split_equals_whole() -> None:
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.02, 0.1, 500))
+    value = np.round(np.repeat(rng.normal(5, 1, 50), 10), 1)
+    value[200:400] = 0.8
+    command = np.clip(0.5 + np.cumsum(rng.normal(0, 0.01, 500)), 0, 1)
+    whole, _ = stuck_mask(RULE, t, value, command)
+    assert whole[300:400].any()
+    for cut in (1, 150, 250, 499):
+        a, carry = stuck_mask(RULE, t[:cut], value[:cut], command[:cut])
+        b, _ = stuck_mask(RULE, t[cut:], value[cut:], command[cut:], carry)
+        np.testing.assert_array_equal(np.concatenate([a, b]), whole)
+
+
+def test_range_and_missing_flags() -> None:
+    flags, _ = check_motor(
+        RULE, [0.0, 0.1, 0.2, 0.3], None, [1.0, -5.0, np.nan, 300.0], [100.0, 100.0, -1.0, 1e5]
+    )
+    assert flags[0] == 0
+    assert flags[1] & SensorIssue.CURRENT_RANGE
+    assert flags[2] & SensorIssue.CURRENT_MISSING and flags[2] & SensorIssue.SPEED_RANGE
+    assert flags[3] & SensorIssue.CURRENT_RANGE and flags[3] & SensorIssue.SPEED_RANGE
+    assert SensorIssue.describe(int(flags[2])) == "current_missing,speed_range"
+
+
+def test_sum_of_esc_currents_against_battery() -> None:
+    t = np.arange(0, 60, 0.1)
+    battery = 40 + 5 * np.sin(t / 3)
+    good, ratio, _ = sum_mismatch(RULE, t, battery * 0.97, battery)
+    assert not good[t > 10].any() and ratio[-1] == pytest.approx(0.97, abs=0.01)
+    half, _, _ = sum_mismatch(RULE, t, battery * 0.5, battery)
+    assert half[t > 10].all()
+
+
+def test_speed_only_tree(testbed_profile: ThresholdProfile, paper_motor) -> None:
+    model = steady_state(paper_motor, 9.0)
+    w_m, i_m = float(model.omega_rad_s), float(model.current_a)
+    # without a trusted current only a large departure counts: 15 % of the model speed (flight default)
+    omegas = [w_m - 0.1 * w_m, w_m - 0.2 * w_m, w_m + 0.2 * w_m, 10.0]
+    n = len(omegas)
+    codes = classify(
+        testbed_profile,
+        omega_rad_s=omegas,
+        omega_model_rad_s=np.full(n, w_m),
+        current_a=np.full(n, 0.8),
+        current_model_a=np.full(n, i_m),
+        voltage_v=np.full(n, 9.0),
+        current_trusted=np.zeros(n, bool),
+    )
+    assert [MotorState(int(c)).label for c in codes] == ["NORMAL", "SLOW", "FAST", "STALLED"]
+    # with no current at all (RPM-only ESC) the same
+    codes = classify(
+        testbed_profile,
+        omega_rad_s=omegas,
+        omega_model_rad_s=np.full(n, w_m),
+        current_a=np.full(n, np.nan),
+        current_model_a=np.full(n, i_m),
+        voltage_v=np.full(n, 9.0),
+    )
+    assert [MotorState(int(c)).label for c in codes] == ["NORMAL", "SLOW", "FAST", "STALLED"]
+
+
+def sitl_like_flight(paper_motor, slow_motor: int | None = None):
+    """Six motors on a fluctuating command with a constant reported current, like stock SITL."""
+    rng = np.random.default_rng(8)
+    t = np.arange(0, 40, 0.1)
+    rows = []
+    for motor in range(1, 7):
+        duty = np.clip(0.55 + 0.05 * np.sin(t * (1 + motor / 7)) + rng.normal(0, 0.01, t.size), 0, 1)
+        v = duty * 16.8
+        w = steady_state(paper_motor, v).omega_rad_s + rng.uniform(-10, 10, t.size)
+        if motor == slow_motor:
+            w = np.where(t > 20, w * 0.55, w)
+        rows.append(
+            dict(
+                time_s=t,
+                motor=np.full(t.size, motor),
+                omega_rad_s=w,
+                esc_current_a=np.full(t.size, 0.8),
+                current_a=motor_current_a(0.8, duty),
+                throttle=duty,
+                bus_voltage_v=np.full(t.size, 16.8),
+            )
+        )
+    return TelemetryTable.concat(TelemetryTable.from_columns(**r) for r in rows)
+
+
+def test_constant_current_is_reported_and_the_slow_motor_found_from_speed(paper_motor) -> None:
+    profile = ThresholdProfile(name="t", steady=SteadyRule(kind="dynamic"))
+    result = diagnose(
+        sitl_like_flight(paper_motor.replace(J_kg_m2=5e-5), slow_motor=1),
+        paper_motor.replace(J_kg_m2=5e-5),
+        profile,
+    )
+    late = result["time_s"] > 25
+    for motor in range(1, 7):
+        sel = (result["motor"] == motor) & late
+        assert (result["sensor_flags"][sel] & SensorIssue.CURRENT_STUCK).all()
+        announced = set(result["announced"][sel].tolist())
+        assert announced == ({MotorState.SLOW} if motor == 1 else {MotorState.NORMAL})
+
+
+def test_dynamic_rule_follows_a_fluctuating_input(paper_motor) -> None:
+    """A healthy motor on a command that moves faster than it can follow: the dynamic prediction tracks it."""
+    params = paper_motor.replace(J_kg_m2=5e-5)
+    t = np.arange(0, 20, 0.02)
+    v = 8 + 1.5 * np.sign(np.sin(2 * np.pi * t / 0.7))  # square wave, steps of 3 V every 0.35 s
+    w_ss = steady_state(params, v).omega_rad_s
+    true_w, _ = first_order_response(t, w_ss, time_constant_s(params, w_ss))
+    i_true = (v - params.k_e * true_w) / params.R_ohm
+    table = TelemetryTable.from_columns(
+        time_s=t, motor=np.ones(t.size), voltage_v=v, omega_rad_s=true_w, current_a=i_true
+    )
+    step = diagnose(table, params, ThresholdProfile(name="step"))
+    dyn = diagnose(table, params, ThresholdProfile(name="dyn", steady=SteadyRule(kind="dynamic")))
+    assert np.abs(dyn["omega_rad_s"] - dyn["omega_model_rad_s"]).max() < 1.0  # the response is predicted
+    assert set(dyn["announced"].tolist()) == {MotorState.NORMAL}
+    assert dyn["steady"].mean() > 0.3  # and it accepts samples between the steps
+    raw_step = step["state"][step["time_s"] > 1]
+    assert np.mean(raw_step != MotorState.NORMAL) > 0.1  # the steady-state model alone misreads transients
+
+
+def test_streaming_equals_batch_in_flight_mode(paper_motor) -> None:
+    params = paper_motor.replace(J_kg_m2=5e-5)
+    table = sitl_like_flight(params, slow_motor=2).select(np.arange(2400) % 3 == 0)
+    profile = ThresholdProfile(name="t", steady=SteadyRule(kind="dynamic"))
+    batch = diagnose(table, params, profile)
+    stream = StreamingDiagnoser(params, profile)
+    order = np.argsort(batch["time_s"], kind="stable")
+    rows = {}
+    for j in order:
+        rows[j] = stream.update(
+            int(batch["motor"][j]),
+            float(batch["time_s"][j]),
+            float(batch["voltage_v"][j]),
+            float(batch["omega_rad_s"][j]),
+            float(batch["current_a"][j]),
+            command=float(batch["throttle"][j]),
+            sensor_current_a=float(batch["esc_current_a"][j]),
+        )
+    assert [rows[j]["announced"] for j in range(len(batch))] == batch["announced"].tolist()
+    assert [rows[j]["sensor_flags"] for j in range(len(batch))] == batch["sensor_flags"].tolist()

@@ -1,0 +1,169 @@
+"""Every branch of the decision tree (Fig. 7) and the transitions the paper reports in section IV.A."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mav_motor_health.diagnosis import MotorState, ThresholdProfile, classify
+from mav_motor_health.model import MotorParams, steady_state
+
+V = 9.2  # volts: current band there is 0.25 + (9.2-4)/(11-4)·2.25 = 1.921 A
+
+
+def model_at(params: MotorParams, v: float = V) -> tuple[float, float]:
+    s = steady_state(params, v)
+    return float(s.omega_rad_s), float(s.current_a)
+
+
+def one(
+    profile: ThresholdProfile,
+    params: MotorParams,
+    d_omega: float,
+    d_current: float,
+    *,
+    omega: float | None = None,
+    current: float | None = None,
+    v: float = V,
+) -> MotorState:
+    w_m, i_m = model_at(params, v)
+    w = w_m + d_omega if omega is None else omega
+    i = i_m + d_current if current is None else current
+    code = classify(
+        profile, omega_rad_s=[w], omega_model_rad_s=[w_m], current_a=[i], current_model_a=[i_m], voltage_v=[v]
+    )
+    return MotorState(int(code[0]))
+
+
+@pytest.mark.parametrize(
+    ("d_omega", "d_current", "expected"),
+    [
+        (0, 0, MotorState.NORMAL),
+        (19, 1.9, MotorState.NORMAL),
+        (-19, -1.9, MotorState.NORMAL),
+        (40, -2.5, MotorState.F3_1),  # faster, less current: lighter propeller
+        (-40, 2.5, MotorState.F1_1),  # slower, more current: friction
+        (0, 2.5, MotorState.F1_1),  # speed inside, current above
+        (-40, 0, MotorState.F4_1),  # slower, current inside
+        (-40, -2.5, MotorState.F4_1),  # slower, less current
+        (0, -2.5, MotorState.F4_1),  # speed inside, current below
+        (40, 0, MotorState.UNKNOWN),  # faster with current inside: not named
+        (40, 2.5, MotorState.UNKNOWN),  # faster with more current: not named
+    ],
+)
+def test_band_branches(testbed_profile, paper_motor, d_omega, d_current, expected) -> None:
+    assert one(testbed_profile, paper_motor, d_omega, d_current) == expected
+
+
+def test_stall_branches_split_at_six_amps(testbed_profile, paper_motor) -> None:
+    assert one(testbed_profile, paper_motor, 0, 0, omega=0.0, current=3.0) == MotorState.F2_1
+    assert one(testbed_profile, paper_motor, 0, 0, omega=99.0, current=5.99) == MotorState.F2_1
+    assert one(testbed_profile, paper_motor, 0, 0, omega=50.0, current=6.0) == MotorState.F4_2
+    assert one(testbed_profile, paper_motor, 0, 0, omega=0.0, current=8.0) == MotorState.F4_2
+    assert one(testbed_profile, paper_motor, 0, 0, omega=101.0, current=3.0) == MotorState.F4_1
+
+
+def test_idle_motor_is_not_a_stalled_motor(testbed_profile, paper_motor) -> None:
+    # At 0.5 V the model itself expects ~50 rad/s: slow is not a fault there.
+    assert one(testbed_profile, paper_motor, 0, 0, v=0.5) == MotorState.NORMAL
+
+
+def test_current_band_interpolation_and_hold(testbed_profile) -> None:
+    widths = testbed_profile.current_halfwidth_a([2.0, 4.0, 7.5, 11.0, 22.0])
+    np.testing.assert_allclose(widths, [0.25, 0.25, 1.375, 2.5, 2.5])
+
+
+def test_missing_values_are_no_data(testbed_profile, paper_motor) -> None:
+    w_m, i_m = model_at(paper_motor)
+    code = classify(
+        testbed_profile,
+        omega_rad_s=[np.nan],
+        omega_model_rad_s=[w_m],
+        current_a=[i_m],
+        current_model_a=[i_m],
+        voltage_v=[V],
+    )
+    assert code[0] == MotorState.NO_DATA
+
+
+def trajectory(testbed_profile, paper_motor, omegas, currents, v=V):
+    w_m, i_m = model_at(paper_motor, v)
+    n = len(omegas)
+    codes = classify(
+        testbed_profile,
+        omega_rad_s=omegas,
+        omega_model_rad_s=np.full(n, w_m),
+        current_a=currents,
+        current_model_a=np.full(n, i_m),
+        voltage_v=np.full(n, v),
+    )
+    return [MotorState(int(c)).label for c in codes]
+
+
+def test_transition_f11_shows_f41_while_current_settles(testbed_profile, paper_motor) -> None:
+    # IV.A, Fig. 9: speed converges in ~0.5 s, current later; F4.1 appears while current is still in band.
+    w_m, i_m = model_at(paper_motor)
+    omegas = [w_m, w_m - 30, w_m - 45, w_m - 50, w_m - 50]
+    currents = [i_m, i_m + 0.5, i_m + 1.5, i_m + 2.5, i_m + 3.0]
+    assert trajectory(testbed_profile, paper_motor, omegas, currents) == [
+        "NORMAL",
+        "F4.1",
+        "F4.1",
+        "F1.1",
+        "F1.1",
+    ]
+
+
+def test_transition_f21_shows_f41_until_below_stop_speed(testbed_profile, paper_motor) -> None:
+    # IV.A, Fig. 10: F4.1 while the speed falls through the band, then F2.1 below 100 rad/s.
+    w_m, i_m = model_at(paper_motor)
+    omegas = [w_m, 500.0, 200.0, 90.0, 0.0]
+    currents = [i_m, 4.0, 3.0, 3.0, 2.5]
+    assert trajectory(testbed_profile, paper_motor, omegas, currents) == [
+        "NORMAL",
+        "F4.1",
+        "F4.1",
+        "F2.1",
+        "F2.1",
+    ]
+
+
+def test_transition_f21_at_high_current_shows_f42_until_below_six_amps(testbed_profile, paper_motor) -> None:
+    # IV.A, Fig. 10 cases 4-5: F4.2 is shown while the stalled current is still above 6 A.
+    omegas = [50.0, 20.0, 0.0, 0.0]
+    currents = [9.0, 7.0, 5.0, 3.0]
+    assert trajectory(testbed_profile, paper_motor, omegas, currents, v=11.0) == [
+        "F4.2",
+        "F4.2",
+        "F2.1",
+        "F2.1",
+    ]
+
+
+def test_transition_f42_shows_f21_while_current_rises_through_six_amps(testbed_profile, paper_motor) -> None:
+    # IV.A, Fig. 13 cases 1-2: at low voltage the stall current rises from below 6 A to 7-8 A.
+    omegas = [80.0, 40.0, 0.0, 0.0]
+    currents = [2.0, 5.0, 7.0, 8.0]
+    assert trajectory(testbed_profile, paper_motor, omegas, currents, v=4.2) == [
+        "F2.1",
+        "F2.1",
+        "F4.2",
+        "F4.2",
+    ]
+
+
+def test_transition_f42_shows_f11_while_slowing_above_stop_speed(testbed_profile, paper_motor) -> None:
+    # IV.A, Fig. 13 cases 3-5: "F1.1 was diagnosed ... until below 100 rad/s".
+    w_m, i_m = model_at(paper_motor, 7.6)
+    omegas = [w_m - 300, 150.0, 60.0]
+    currents = [i_m + 4.0, 8.0, 7.5]
+    assert trajectory(testbed_profile, paper_motor, omegas, currents, v=7.6) == ["F1.1", "F1.1", "F4.2"]
+
+
+def test_transition_f31_start_up_shows_f21_then_f41(testbed_profile, paper_motor) -> None:
+    # IV.A, Fig. 11: started with a broken propeller: F2.1 below 100 rad/s, F4.1 while the speed passes
+    # through the band with a low current, then F3.1.
+    w_m, i_m = model_at(paper_motor)
+    omegas = [50.0, w_m, w_m + 60]
+    currents = [0.5, i_m - 3.0, i_m - 3.0]
+    assert trajectory(testbed_profile, paper_motor, omegas, currents) == ["F2.1", "F4.1", "F3.1"]
