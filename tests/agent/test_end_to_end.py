@@ -45,6 +45,11 @@ def agent_config(peer: VehiclePeer, broker_port: int, **kw: Any):
     )
 
 
+def gcs_up(gcs) -> bool:
+    """MAVProxy is forwarding the vehicle (a one-shot STATUSTEXT sent before it listens would be lost)."""
+    return any(m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1 for _, m in list(gcs.received))
+
+
 def latest_states(listener: MqttListener) -> dict[int, str]:
     states = {}
     for _, payload in listener.on("/state"):
@@ -72,6 +77,7 @@ def test_fault_is_announced_over_mavlink_and_mqtt_within_a_second(paper_motor, b
         with VehiclePeer(paper_motor, gcs_port=mavproxy.master_port) as peer:
             async with Agent(agent_config(peer, broker.port)) as agent:
                 await until(lambda: all_normal(listener), 30, "six motors NORMAL on MQTT")
+                await until(lambda: gcs_up(mavproxy), 30, "MAVProxy forwarding the vehicle")
                 # the agent asked ArduPilot for ESC telemetry with SET_MESSAGE_INTERVAL, read the mapping
                 asked = {int(m.param1) for _, m in peer.messages("COMMAND_LONG") if m.command == 511}
                 assert {11030, 36} <= asked
@@ -102,6 +108,11 @@ def test_fault_is_announced_over_mavlink_and_mqtt_within_a_second(paper_motor, b
                     ),
                     10,
                     "the STATUSTEXT at MAVProxy",
+                    lambda: (
+                        list(agent.statustexts),
+                        [m.text for _, m in peer.messages("STATUSTEXT")],
+                        mavproxy.texts(),
+                    ),
                 )
                 assert mqtt_at - onset < 1.0, f"MQTT event {mqtt_at - onset:.2f} s after onset"
                 assert gcs_at - onset < 1.0, (
@@ -126,7 +137,9 @@ def test_fault_is_announced_over_mavlink_and_mqtt_within_a_second(paper_motor, b
                     "telemetry",
                 )
                 assert tele[-1]["omega_rad_s"] > tele[-1]["omega_model_rad_s"] + 20
-                assert tele[-1]["current_a"] < tele[-1]["current_model_a"] and tele[-1]["steady"] is True
+                assert tele[-1]["current_a"] < tele[-1]["current_model_a"] and tele[-1]["steady"] is True, (
+                    tele[-4:]
+                )
                 # NAMED_VALUE_INT reaches the ground station; MOTOR_HEALTH reaches the vehicle
                 await until(
                     lambda: any(
@@ -156,8 +169,10 @@ def test_link_loss_reboot_and_silent_esc_lose_no_state_change(paper_motor, broke
 
     async def main() -> None:
         with VehiclePeer(paper_motor, gcs_port=mavproxy.master_port) as peer:
-            async with Agent(agent_config(peer, broker.port)) as agent:
+            fast = agent_config(peer, broker.port).with_overrides(heartbeat_timeout_s=1.5)
+            async with Agent(fast) as agent:
                 await until(lambda: all_normal(listener), 30, "six motors NORMAL")
+                await until(lambda: gcs_up(mavproxy), 30, "MAVProxy forwarding the vehicle")
                 # one ESC goes silent: ArduPilot repeats its values with a frozen count
                 peer.silent.add(6)
                 await until(lambda: latest_states(listener).get(6) == "NO_DATA", 5, "motor 6 NO_DATA")
