@@ -33,6 +33,8 @@ class WorkbenchData:
     current_a: FloatArray
     context: dict[str, FloatArray]
     source: str
+    #: the current as the sensor reported it (the ESC's input current where the source has it)
+    reported_current_a: FloatArray | None = None
 
     @classmethod
     def from_table(cls, table: TelemetryTable) -> WorkbenchData:
@@ -42,6 +44,7 @@ class WorkbenchData:
             name: np.asarray(t[name], dtype=float)
             for name in t.names
             if name not in MODEL_COLUMNS
+            and name not in _MEASURED_OUTPUTS
             and t[name].dtype.kind in "biuf"
             and not any(_same(np.asarray(t[name], dtype=float), out) for out in outputs)
         }
@@ -53,6 +56,9 @@ class WorkbenchData:
             current_a=np.asarray(t["current_a"], float),
             context=context,
             source=table.source,
+            reported_current_a=None
+            if t.get("esc_current_a") is None
+            else np.asarray(t["esc_current_a"], float),
         )
 
     def __len__(self) -> int:
@@ -67,6 +73,7 @@ class WorkbenchData:
             self.current_a[rows],
             {k: v[rows] for k, v in self.context.items()},
             self.source,
+            None if self.reported_current_a is None else self.reported_current_a[rows],
         )
 
     def usable(self) -> WorkbenchData:
@@ -75,7 +82,8 @@ class WorkbenchData:
         ok &= self.omega_rad_s > 0
         if not ok.any():
             raise FitError(f"{self.source or 'the data'}: no sample has voltage, speed and current together")
-        for name, values in (("current_a", self.current_a[ok]), ("omega_rad_s", self.omega_rad_s[ok])):
+        reported = self.current_a if self.reported_current_a is None else self.reported_current_a
+        for name, values in (("current_a", reported[ok]), ("omega_rad_s", self.omega_rad_s[ok])):
             distinct = np.unique(values)
             if len(distinct) < 3:
                 raise FitError(
@@ -85,6 +93,11 @@ class WorkbenchData:
                     "compared or fitted"
                 )
         return self.select(np.flatnonzero(ok))
+
+
+#: The current as the ESC reports it (duty × motor current): the measured output in another form, never a
+#: variable to explain the current's residual with.
+_MEASURED_OUTPUTS = frozenset({"esc_current_a"})
 
 
 def _same(a: FloatArray, b: FloatArray) -> bool:
