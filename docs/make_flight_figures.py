@@ -11,7 +11,6 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-import numpy as np
 
 from mav_motor_health.config import load_motor_params, load_profile
 from mav_motor_health.diagnosis import diagnose
