@@ -159,13 +159,17 @@ def diagnose_motor(
     announced, persistence_carry = announce(
         profile.persistence.hold_s(), t, state, eligible, carry.persistence, profile.persistence.max_gap_s
     )
-    columns = {
+    columns: dict[str, NDArray] = {
         "state": state,
         "announced": announced,
         "steady": steady,
         "omega_model_rad_s": omega_pred,
         "current_model_a": current_pred,
         "sensor_flags": flags,
+        "omega_judged_rad_s": omega_seen,
+        "current_judged_a": current_seen,
+        "speed_band_rad_s": np.full(t.shape, profile.speed_band_rad_s),
+        "current_band_a": profile.current_halfwidth_a(v),
     }
     new_carry = MotorCarry(
         steady=steady_carry,
@@ -219,6 +223,10 @@ def diagnose(
         "omega_model_rad_s": np.full(n, np.nan),
         "current_model_a": np.full(n, np.nan),
         "sensor_flags": np.zeros(n, dtype=np.int16),
+        "omega_judged_rad_s": np.full(n, np.nan),
+        "current_judged_a": np.full(n, np.nan),
+        "speed_band_rad_s": np.full(n, np.nan),
+        "current_band_a": np.full(n, np.nan),
     }
     motors = ordered["motor"]
 
@@ -261,6 +269,10 @@ def diagnose(
         current_model_a=out["current_model_a"],
         voltage_v=voltage,
         sensor_flags=out["sensor_flags"],
+        omega_judged_rad_s=out["omega_judged_rad_s"],
+        current_judged_a=out["current_judged_a"],
+        speed_band_rad_s=out["speed_band_rad_s"],
+        current_band_a=out["current_band_a"],
     )
     for name in ordered.names:
         result.setdefault(name, ordered[name])

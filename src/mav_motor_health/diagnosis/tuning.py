@@ -131,8 +131,9 @@ def tune_profile(
     for r, (healthy, _) in zip(results, masks):
         use = healthy & r["steady"] & ((r["sensor_flags"] & CURRENT_UNTRUSTED) == 0)
         use &= r["omega_model_rad_s"] >= base.stop_speed_rad_s
-        rw.append(np.abs(r["omega_rad_s"] - r["omega_model_rad_s"])[use])
-        ri.append(np.abs(r["current_a"] - r["current_model_a"])[use])
+        # the measurement as the tree judged it (after the flight rule's residual low-pass)
+        rw.append(np.abs(r["omega_judged_rad_s"] - r["omega_model_rad_s"])[use])
+        ri.append(np.abs(r["current_judged_a"] - r["current_model_a"])[use])
         rv.append(r["voltage_v"][use])
     res_w, res_i, volts = (np.concatenate(x) for x in (rw, ri, rv))
     if res_w.size < 50:
