@@ -191,10 +191,13 @@ def tune_profile(
         for r, (healthy, _) in zip(tuned, masks):
             for code, dur in _longest_runs(r, healthy, profile.persistence.max_gap_s).items():
                 longest[code] = max(longest.get(code, 0.0), dur)
-        holds = tuple(
-            (MotorState(code).label, round(max(min_hold_s, margin * dur), 3))
-            for code, dur in sorted(longest.items())
-        )
+        # the base profile's holds are minimums (speed-only states, say, which labelled flights with a
+        # trusted current never show)
+        hold_by_label = dict(base.persistence.announce_s)
+        for code, dur in longest.items():
+            label = MotorState(code).label
+            hold_by_label[label] = max(hold_by_label.get(label, 0.0), round(max(min_hold_s, margin * dur), 3))
+        holds = tuple(sorted(hold_by_label.items()))
         profile = replace(
             profile,
             persistence=PersistenceRule(
