@@ -14,9 +14,9 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from peer import VehiclePeer
+from agent_parts import REPO, MqttListener, wait_for
+from vehicle_peer import VehiclePeer
 
-from conftest import REPO, MqttListener, wait_for
 from mav_motor_health.agent import Agent, load_agent_config
 from mav_motor_health.diagnosis.states import MotorState
 

@@ -14,8 +14,8 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
+from agent_parts import MqttListener, free_port
 
-from conftest import MqttListener, free_port
 from mav_motor_health.agent import Agent, load_agent_config
 from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.sim.live import SimVehicle
