@@ -285,3 +285,25 @@ def test_sim_behind_mavproxy_as_router(broker, mavproxy_router):
         asyncio.run(main())
     finally:
         listener.close()
+
+
+def test_sim_over_tcp_reconnects_after_the_vehicle_restarts(agent_port):
+    """TCP link (the agent a client of the vehicle's TCP server): the vehicle goes away and comes back."""
+    port = free_port()
+
+    async def main() -> None:
+        cfg = load_agent_config(None, connect=f"tcp:127.0.0.1:{port}").with_overrides(heartbeat_timeout_s=1.5)
+        async with Agent(cfg) as agent:
+            agent.link.reconnect_s = 0.2
+            scenario = load_scenario("flight/healthy_calm")
+            with SimVehicle(scenario, f"tcpin:127.0.0.1:{port}"):
+                await until(lambda: agent.monitor.samples > 100, 20, "samples over TCP")
+            await until(lambda: not agent.tracker.up, 10, "autopilot lost when the vehicle stops")
+            before = agent.monitor.samples
+            with SimVehicle(scenario, f"tcpin:127.0.0.1:{port}"):
+                await until(
+                    lambda: agent.monitor.samples > before + 100, 20, "samples again after reconnecting"
+                )
+            assert agent.tracker.losses >= 1
+
+    asyncio.run(main())
