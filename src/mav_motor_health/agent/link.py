@@ -12,7 +12,8 @@ error, a TCP end of file) is closed and reopened with back-off; the loop only se
 start again.
 
 A ``.tlog`` path is a transport too (replay through the live path): a reader thread hands its records to
-the loop with their own timestamps, waiting for the loop instead of dropping messages.
+the loop with their own timestamps (seconds from the first record, as the log readers count them),
+waiting for the loop instead of dropping messages.
 
 Connection URLs: ``/dev/serial0:921600`` (device and baud rate), ``udpin:0.0.0.0:14550``,
 ``udpout:127.0.0.1:14550``, ``tcp:127.0.0.1:5760``, ``tcpin:0.0.0.0:5760``, ``flight.tlog``.
@@ -362,6 +363,7 @@ class MavlinkLink:
             return
         self.opened.set()
         pos = 0
+        origin_us: int | None = None
         batch: list[Received] = []
         while pos + 9 <= len(data) and not self._stop.is_set():
             (stamp_us,) = struct.unpack_from(">Q", data, pos)
@@ -376,7 +378,9 @@ class MavlinkLink:
                 continue
             frame = data[pos + 8 : pos + 8 + size]
             pos += 8 + size
-            batch.extend(Received(stamp_us * 1e-6, msg) for msg in self._parse(parser, frame))
+            if origin_us is None:
+                origin_us = stamp_us  # seconds from the first record, as the log readers count them
+            batch.extend(Received((stamp_us - origin_us) / 1e6, msg) for msg in self._parse(parser, frame))
             if len(batch) >= 200:
                 self._deliver(batch, wait=True)
                 batch = []
