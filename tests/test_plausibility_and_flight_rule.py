@@ -157,7 +157,10 @@ def test_dynamic_rule_follows_a_fluctuating_input(paper_motor) -> None:
         time_s=t, motor=np.ones(t.size), voltage_v=v, omega_rad_s=true_w, current_a=i_true
     )
     step = diagnose(table, params, ThresholdProfile(name="step"))
-    dyn = diagnose(table, params, ThresholdProfile(name="dyn", steady=SteadyRule(kind="dynamic")))
+    # the lag criterion alone (no step rule): it must accept samples between the steps
+    dyn = diagnose(
+        table, params, ThresholdProfile(name="dyn", steady=SteadyRule(kind="dynamic", step_v=10.0))
+    )
     assert np.abs(dyn["omega_rad_s"] - dyn["omega_model_rad_s"]).max() < 1.0  # the response is predicted
     assert set(dyn["announced"].tolist()) == {MotorState.NORMAL}
     assert dyn["steady"].mean() > 0.3  # and it accepts samples between the steps

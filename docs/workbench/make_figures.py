@@ -111,6 +111,7 @@ def main_script() -> None:
         ["fit", str(dtu), "--with", "esc_pwm", "--plot", str(DOCS / "real_dtu_fit_steps.png")],
         "real_dtu_fit.txt",
     )
+    run(["explain", str(bench.parent / "px4" / "esc_status_log.ulg")], "real_px4_explain.txt")
     straw = [str(bench / "strawson" / "rawdata" / f"g5_{s}.csv") for s in (7, 11)]
     run(["explain", *straw], "real_strawson_explain.txt")
     run(["compare", *straw, "--plot-dir", str(work / "strawson")], "real_strawson_compare.txt")

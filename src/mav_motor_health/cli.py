@@ -30,6 +30,7 @@ COMMANDS = (
     "simulate",
     "score",
     "sim",
+    "tune",
 )
 
 

@@ -248,6 +248,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
                 settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
                 kind=steady.text("kind", "step"),
                 lag_fraction=steady.number("lag_fraction", 0.5, minimum=0.0),
+                residual_tau_s=steady.number("residual_tau_s", 0.0, minimum=0.0, maximum=5.0, unit="s"),
             ),
             plausibility=PlausibilityRule(
                 **{
@@ -259,6 +260,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             persistence=PersistenceRule(
                 default_announce_s=pers.number("default_announce_s", 0.1, minimum=0.0, unit="s"),
                 clear_s=pers.number("clear_s", 0.5, minimum=0.0, unit="s"),
+                max_gap_s=pers.number("max_gap_s", float("inf"), minimum=0.0, unit="s"),
                 announce_s=announce,
             ),
         )
@@ -297,11 +299,14 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"step_v = {profile.steady.step_v!r}",
         f"settle_s = {profile.steady.settle_s!r}",
         f"lag_fraction = {profile.steady.lag_fraction!r}",
+        f"residual_tau_s = {profile.steady.residual_tau_s!r}",
         "",
         "[persistence]",
         f"default_announce_s = {profile.persistence.default_announce_s!r}",
         f"clear_s = {profile.persistence.clear_s!r}",
     ]
+    if profile.persistence.max_gap_s != float("inf"):
+        lines.append(f"max_gap_s = {profile.persistence.max_gap_s!r}")
     if profile.persistence.announce_s:
         lines += ["", "[persistence.announce_s]"]
         lines += [f"{_toml_string(label)} = {value!r}" for label, value in profile.persistence.announce_s]

@@ -3,8 +3,8 @@
 For one log, :func:`replay_log` writes into its output folder:
 
 * ``diagnosis.csv`` — one row per motor sample: ``time_s, motor, state, announced, steady, omega_rad_s,
-  omega_model_rad_s, current_a, current_model_a, voltage_v`` (states as labels, ``F3.1``...) and the
-  context columns the log had (throttle, bus voltage, battery, altitude...);
+  omega_model_rad_s, current_a, current_model_a, voltage_v`` (states as labels, ``F3.1``...), then the
+  command and bus voltage the motor voltage came from;
 * ``events.jsonl`` — one JSON object per change of a motor's announced state, with the evidence;
 * ``report.html`` — one self-contained page: verdict per motor, fault timeline, measured vs model.
 
@@ -298,8 +298,14 @@ def replay_log(
     force: bool = False,
     progress: TextIO | None = None,
     reissue_warnings: bool = True,
+    calibrate_s: tuple[float, float] | None = None,
 ) -> ReplayResult:
-    """Replay one log into ``out_dir`` (diagnosis.csv, events.jsonl, report.html)."""
+    """Replay one log into ``out_dir`` (diagnosis.csv, events.jsonl, report.html).
+
+    ``calibrate_s`` (start, end): first fit the motor model on that healthy stretch of the same log
+    (:func:`~mav_motor_health.diagnosis.calibration.calibrate`, ``params`` as the base), then diagnose
+    the whole flight with it.
+    """
     from .replay_report import render_report
     from .telemetry import sources
 
@@ -311,12 +317,25 @@ def replay_log(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         table = sources.read(log)
-    notes = tuple(str(w.message) for w in caught)
+    warned = tuple(str(w.message) for w in caught)
+    notes = warned
     if reissue_warnings:
         for w in caught:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if len(table) == 0:
         raise DataError("the log's ESC telemetry has no samples for any motor", path=log)
+    if calibrate_s is not None:
+        from .diagnosis.calibration import calibrate
+
+        base = params if isinstance(params, MotorParams) else params[min(params)]
+        calibration = calibrate(table, base, *calibrate_s)
+        params = calibration.params
+        how = "speed only: the current is not trusted" if calibration.speed_only else "speed and current"
+        notes += (
+            f"Motor model calibrated on {calibrate_s[0]:g}–{calibrate_s[1]:g} s of this log ({how}; "
+            f"{calibration.samples} samples, {100 * calibration.current_trusted_share:.0f} % with a "
+            "trusted current).",
+        )
     bar.update(1, 4, f"diagnosing {len(table.motors())} motors")
     result = diagnose(table, params, profile)  # the same core the live agent runs
     expected = [int(m) for m in table.meta.get("motors", [])]
@@ -343,7 +362,7 @@ def replay_log(
         rows=len(result),
         verdicts=tuple(verdicts),
         events=tuple(events),
-        warnings=notes,
+        warnings=warned,
         elapsed_s=time.monotonic() - started,
     )
 
@@ -354,10 +373,13 @@ def _replay_worker(
     params: MotorParams | dict[int, MotorParams],
     profile: ThresholdProfile,
     force: bool,
+    calibrate_s: tuple[float, float] | None = None,
 ) -> ReplayResult:
     started = time.monotonic()
     try:
-        return replay_log(log, out_dir, params, profile, force=force, reissue_warnings=False)
+        return replay_log(
+            log, out_dir, params, profile, force=force, reissue_warnings=False, calibrate_s=calibrate_s
+        )
     except MotorHealthError as exc:
         return ReplayResult(
             log,
@@ -394,6 +416,7 @@ def replay_many(
     jobs: int | None = None,
     progress: TextIO | None = None,
     on_result: Callable[[ReplayResult], None] | None = None,
+    calibrate_s: tuple[float, float] | None = None,
 ) -> FleetResult:
     """Replay many logs in worker processes: ``out_dir/<log name>/`` each, plus the fleet summary."""
     paths = [Path(p) for p in logs]
@@ -407,14 +430,14 @@ def replay_many(
     bar.update(0, len(paths))
     if jobs == 1:
         for path, folder in zip(paths, folders):
-            results.append(_replay_worker(str(path), str(folder), params, profile, force))
+            results.append(_replay_worker(str(path), str(folder), params, profile, force, calibrate_s))
             if on_result:
                 on_result(results[-1])
             bar.update(len(results), len(paths), path.name)
     else:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             futures = [
-                pool.submit(_replay_worker, str(p), str(f), params, profile, force)
+                pool.submit(_replay_worker, str(p), str(f), params, profile, force, calibrate_s)
                 for p, f in zip(paths, folders)
             ]
             for future in as_completed(futures):

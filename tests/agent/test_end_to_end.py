@@ -36,6 +36,9 @@ async def until(
 
 
 def agent_config(peer: VehiclePeer, broker_port: int, **kw: Any):
+    # The peer holds every motor at one constant throttle with steady-state faults, like the paper's
+    # testbed: the testbed profile is the one for it (the flight profile's bands are tuned for gusts).
+    kw.setdefault("profile", "testbed")
     return load_agent_config(
         None,
         connect=f"udpout:127.0.0.1:{peer.port}",

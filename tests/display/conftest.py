@@ -423,3 +423,9 @@ def real_logs() -> Path:
         if candidate.is_dir():
             return candidate
     pytest.fail(f"the shared real logs are missing: expected shared/real_logs beside a folder above {here}")
+
+
+@pytest.fixture(name="free_port")
+def free_port_fixture() -> Callable[[], int]:
+    """A free loopback port (for UDP links too: TCP and UDP ports are separate but rarely both taken)."""
+    return free_port

@@ -111,8 +111,7 @@ def samples(
     log = read_records(part, ["FMT"], warn=False)
     fmt = tuple((int(o), int(o) + 89) for o in log.offsets["FMT"].tolist())
     lengths = {name: f.length for name, f in log.formats.items()}
-    out["bin"] = Sample(raw, records, lambda data, o, rec=records: 0, fmt, bin_records)
-    object.__setattr__(out["bin"], "span", _bin_span(records, lengths))
+    out["bin"] = Sample(raw, records, _bin_span(records, lengths), fmt, bin_records)
 
     raw = px4_esc_ulg.read_bytes()
     records = ulog_records(px4_esc_ulg)
@@ -184,3 +183,26 @@ def test_damage_never_crashes_and_intact_records_survive(
             assert got.get(key) == value, f"{fmt}: record {key} lost or changed (damage {flips}, cut {cut})"
         elif untouched and not flips:
             assert got.get(key) == value
+
+
+@pytest.mark.timeout(300)
+@pytest.mark.parametrize("suffix", [".tlog", ".bin", ".ulg"])
+@settings(max_examples=30, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(
+    data=st.binary(min_size=0, max_size=4000),
+    prefix=st.sampled_from([b"", b"ULog\x01\x12\x35\x01", b"\xa3\x95\x80"]),
+)
+def test_arbitrary_bytes_give_a_table_or_a_clear_error(
+    suffix: str, data: bytes, prefix: bytes, tmp_path_factory: pytest.TempPathFactory
+) -> None:
+    from mav_motor_health.errors import DataError
+    from mav_motor_health.telemetry import sources
+
+    path = tmp_path_factory.mktemp("junk") / f"junk{suffix}"
+    path.write_bytes(prefix + data)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            sources.read(path)
+        except DataError as exc:
+            assert str(path) in str(exc)

@@ -34,6 +34,7 @@ def dfreader_records(bin_prefix: Path) -> dict[str, list[dict[str, Any]]]:
     found: dict[str, list[dict[str, Any]]] = defaultdict(list)
     while (msg := reader.recv_match(type=list(USED_RECORDS))) is not None:
         found[msg.get_type()].append(msg.to_dict())
+    reader.filehandle.close()  # DFReader leaves its file open
     return found
 
 
@@ -74,7 +75,7 @@ def test_table_maps_esc_instances_to_motors_and_scales(
         mine = [m for m in esc if m["Instance"] == motor - 1]
         assert len(rows) == len(mine)
         np.testing.assert_allclose(rows["omega_rad_s"], [m["RPM"] * RPM_TO_RAD_S for m in mine])
-        np.testing.assert_allclose(rows["current_a"], [m["Curr"] for m in mine])
+        np.testing.assert_allclose(rows["esc_current_a"], [m["Curr"] for m in mine])
         np.testing.assert_allclose(rows["bus_voltage_v"], [m["Volt"] for m in mine])
         np.testing.assert_allclose(
             rows["time_s"], np.array([m["TimeUS"] for m in mine]) / 1e6 - table.meta["time_origin_boot_s"]
@@ -97,8 +98,13 @@ def test_throttle_from_rcou_and_the_motor1_fault_is_visible(sitl_bin: Path) -> N
     w3 = (m3["time_s"] > 112) & (m3["time_s"] < 128)
     assert np.mean(m1["throttle"][w1]) > np.mean(m3["throttle"][w3]) + 0.1
     assert np.mean(m1["omega_rad_s"][w1]) < 0.7 * np.mean(m3["omega_rad_s"][w3])
-    # SITL's ESC current is a constant (MANIFEST): the reader passes it through untouched.
-    assert np.unique(np.round(table["current_a"], 3)).tolist() == [0.8]
+    # SITL's ESC current is a constant (MANIFEST): the reader passes it through untouched; the motor
+    # current derived from it (ESC current / throttle) is what the live agent would compute.
+    assert np.unique(np.round(table["esc_current_a"], 3)).tolist() == [0.8]
+    moving = table["throttle"] >= 0.05
+    np.testing.assert_allclose(
+        table["current_a"][moving], table["esc_current_a"][moving] / table["throttle"][moving]
+    )
 
 
 def test_dataflash_and_tlog_of_the_same_flight_agree(sitl_bin: Path, sitl_tlog: Path) -> None:

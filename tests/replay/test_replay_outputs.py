@@ -170,3 +170,25 @@ def test_progress_line_goes_to_the_stream() -> None:
     bar.close()
     assert "flight.bin [############------------] 2/4 diagnosing" in stream.getvalue()
     assert stream.getvalue().endswith("\n")
+
+
+def test_calibrated_replay_finds_motor_1_on_the_sitl_flight_and_nothing_else(
+    sitl_bin: Path, tmp_path: Path
+) -> None:
+    """MANIFEST: motor 1's thrust halved 110-130 s; calibrated on the hover before, replay names motor 1 only."""
+    out = tmp_path / "cal"
+    assert main(["replay", str(sitl_bin), "--out", str(out), "--calibrate", "38:108"]) == 0
+    events = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
+    faulty = {e["motor"] for e in events if MotorState.from_label(e["state"]).is_fault}
+    assert faulty == {1}
+    onset = min(e["time_s"] for e in events if e["motor"] == 1)
+    assert 112 < onset < 118  # this log's clock: the command crosses 0.7 at 114.0 s
+    page = (out / "report.html").read_text()
+    assert "calibrated on 38–108 s" in page
+
+
+def test_calibration_window_must_be_start_colon_end(sitl_bin: Path, tmp_path: Path) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["replay", str(sitl_bin), "--out", str(tmp_path / "x"), "--calibrate", "108:38"])
+    assert info.value.code == 2
+    assert not (tmp_path / "x").exists()

@@ -87,8 +87,13 @@ def test_table_rows_are_the_esc_slots_in_si_units(
         assert np.isnan(rows["omega_rad_s"][~fresh]).all()  # repeated values: stale, not a measurement
         np.testing.assert_allclose(rows["bus_voltage_v"], [m.voltage[slot] / 100 for m in msgs])
         np.testing.assert_allclose(rows["esc_temp_c"], [m.temperature[slot] for m in msgs])
-        fresh_current = rows["current_a"][fresh]
-        np.testing.assert_allclose(fresh_current, np.array([m.current[slot] / 100 for m in msgs])[fresh])
+        esc_current = np.array([m.current[slot] / 100 for m in msgs])
+        np.testing.assert_allclose(rows["esc_current_a"][fresh], esc_current[fresh])
+        # the motor's current and voltage: the ESC as an ideal PWM stage, as the live agent computes them
+        moving = fresh & (rows["throttle"] >= 0.05)
+        np.testing.assert_allclose(rows["current_a"][moving], esc_current[moving] / rows["throttle"][moving])
+        assert np.isnan(rows["current_a"][rows["throttle"] < 0.05]).all()
+        np.testing.assert_allclose(rows["voltage_v"], rows["throttle"] * rows["bus_voltage_v"])
 
 
 def test_throttle_is_the_servo_output_held_to_each_esc_sample(

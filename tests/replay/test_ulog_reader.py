@@ -85,7 +85,7 @@ def test_esc_table_kelvin_to_celsius_and_esc_slots(px4_esc_ulg: Path) -> None:
         rows = table.for_motor(motor)
         assert len(rows) == len(esc["timestamp"])
         np.testing.assert_allclose(rows["omega_rad_s"], esc[f"esc[{motor - 1}].esc_rpm"] * RPM_TO_RAD_S)
-        np.testing.assert_allclose(rows["current_a"], esc[f"esc[{motor - 1}].esc_current"])
+        np.testing.assert_allclose(rows["esc_current_a"], esc[f"esc[{motor - 1}].esc_current"])
         np.testing.assert_allclose(
             rows["esc_temp_c"], esc[f"esc[{motor - 1}].esc_temperature"] - 273.15, rtol=1e-6
         )

@@ -47,7 +47,7 @@ def test_fault_diagnosed_in_steady_state_as_fast_as_the_paper(
 
 @pytest.mark.parametrize("volts", CASES_V)
 def test_healthy_testbed_runs_stay_normal(sitl_logs, paper_motor, testbed_profile, volts):
-    cols, _, s = run(sitl_logs, paper_motor, testbed_profile, f"healthy_{volts}V")
+    _, _, s = run(sitl_logs, paper_motor, testbed_profile, f"healthy_{volts}V")
     assert s.false_events == 0
     assert s.normal_accuracy_pct is not None and s.normal_accuracy_pct > 99.0
 
@@ -60,3 +60,18 @@ def test_manifest_lists_every_committed_log(sitl_logs):
         assert f"`{p.name}`" in text
         assert (sitl_logs / f"{p.name}.truth.json").exists()
     assert sum(p.stat().st_size for p in sitl_logs.iterdir()) < 15e6
+
+
+def test_committed_logs_regenerate_identically(sitl_logs, tmp_path):
+    """sitl_logs/ is reproducible: the same scenario and seed give the same bytes."""
+    from mav_motor_health.sim.engine import run_scenario
+    from mav_motor_health.sim.scenario import load_scenario
+    from mav_motor_health.sim.writers import write_record
+
+    name = "F4.2_5.8V"
+    out, truth = write_record(
+        run_scenario(load_scenario(f"testbed/{name}")), tmp_path / f"testbed_{name}.csv"
+    )
+    assert out.read_bytes() == (sitl_logs / f"testbed_{name}.csv").read_bytes()
+    committed = json.loads((sitl_logs / f"testbed_{name}.csv.truth.json").read_text())
+    assert json.loads(truth.read_text()) == committed

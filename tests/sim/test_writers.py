@@ -123,7 +123,7 @@ def test_writers_never_overwrite(record, tmp_path: Path):
     with pytest.raises(DataError, match="not overwritten"):
         write_record(record, path)
     truth_path(tmp_path / "b.csv").write_text("{}")
-    with pytest.raises(DataError, match="b.csv.truth.json"):
+    with pytest.raises(DataError, match=r"b\.csv\.truth\.json"):
         write_record(record, tmp_path / "b.csv")
     write_record(record, path, force=True)
     with pytest.raises(DataError, match="expected one of"):

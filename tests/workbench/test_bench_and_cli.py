@@ -187,3 +187,20 @@ def test_compare_finds_where_the_model_fails(
     hot = [r for r in result.regions if r.kind == "motor_temp_c"]
     assert max(hot, key=lambda r: r.ratio_omega).lower >= 50  # worst at the hot end
     assert "exceeds the noise floor" in result.report()
+
+
+def test_workbench_on_real_flight_logs(bench_logs: Path) -> None:
+    """PX4 flight with UAVCAN ESC telemetry: compare and explain run; SITL's constant current is refused."""
+    from mav_motor_health.errors import FitError
+
+    px4 = WorkbenchData.from_table(sources.read(bench_logs.parent / "px4" / "esc_status_log.ulg"))
+    assert "esc_current_a" not in px4.context  # a copy of current_a is not a variable to explain with
+    result = compare(px4)
+    assert result.noise.method == "repeated" and result.forward[0].n > 400
+    explained = explain(px4, seed=0)
+    assert explained.variables and math.isfinite(explained.heldout_base)
+    sitl = WorkbenchData.from_table(
+        sources.read(bench_logs.parent / "ardupilot_sitl" / "hexa_motor1_half.tlog")
+    )
+    with pytest.raises(FitError, match=r"current_a takes only the value\(s\) 0.8"):
+        compare(sitl)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mav_motor_health.errors import ConfigError
 from mav_motor_health.model.effects import BUILTIN_EFFECTS, Effect, EffectParameter, compose, solve
@@ -142,3 +144,21 @@ def test_parameter_declarations_are_validated() -> None:
             {},
             [(BUILTIN_EFFECTS["propeller_exponent"], {"not_a_parameter": 1.0})],
         )
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    R=st.floats(0.02, 2.0),
+    k_e=st.floats(0.002, 0.05),
+    C_p=st.floats(1e-12, 1e-8),
+    B=st.floats(0.0, 1e-5),
+    T_f=st.floats(0.0, 0.02),
+    k=st.sampled_from([1.0, 2.0, 2.6, 3.0, 4.0]),
+    volts=st.lists(st.floats(-1.0, 30.0), min_size=1, max_size=20),
+)
+def test_composed_solution_without_effects_is_the_foundations(R, k_e, C_p, B, T_f, k, volts) -> None:
+    params = MotorParams(R, k_e, C_p, B, T_f, k)
+    ours = solve(compose(params, volts, {}, []))
+    theirs = steady_state(params, volts)
+    np.testing.assert_allclose(ours.omega_rad_s, theirs.omega_rad_s, rtol=1e-7, atol=1e-7)
+    np.testing.assert_allclose(ours.current_a, theirs.current_a, rtol=1e-7, atol=1e-7)

@@ -1,4 +1,5 @@
-"""``mav-motor-health replay LOG... [--profile P] [--params FILE] [--out DIR] [--force] [--jobs N]``."""
+"""``mav-motor-health replay LOG... [--profile P] [--params FILE] [--out DIR] [--force] [--jobs N]
+[--calibrate START:END]``."""
 
 from __future__ import annotations
 
@@ -39,14 +40,40 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--jobs", type=int, default=None, metavar="N", help="worker processes (default: CPU count)"
     )
+    p.add_argument(
+        "--calibrate",
+        type=_window,
+        default=None,
+        metavar="START:END",
+        help="fit the motor model on this healthy stretch of each log first (seconds on the log's time "
+        "axis, e.g. a hover before anything happened)",
+    )
     p.set_defaults(run=run)
+
+
+def _window(text: str) -> tuple[float, float]:
+    try:
+        start, end = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected START:END in seconds, got {text!r}") from None
+    if not end > start:
+        raise argparse.ArgumentTypeError(f"END must be after START, got {text!r}")
+    return start, end
 
 
 def run(args: argparse.Namespace) -> int:
     params, profile = load_motor_params(args.params), load_profile(args.profile)
     logs = collect_logs(args.logs)
     if len(logs) == 1 and not any(Path(a).is_dir() for a in args.logs):
-        result = replay_log(logs[0], args.out, params, profile, force=args.force, progress=sys.stderr)
+        result = replay_log(
+            logs[0],
+            args.out,
+            params,
+            profile,
+            force=args.force,
+            progress=sys.stderr,
+            calibrate_s=args.calibrate,
+        )
         print_verdicts(result)
         return 0
 
@@ -57,7 +84,15 @@ def run(args: argparse.Namespace) -> int:
             sys.stderr.write(f"\nmav-motor-health replay: error: {result.error}\n")
 
     fleet = replay_many(
-        logs, args.out, params, profile, force=args.force, jobs=args.jobs, progress=sys.stderr, on_result=show
+        logs,
+        args.out,
+        params,
+        profile,
+        force=args.force,
+        jobs=args.jobs,
+        progress=sys.stderr,
+        on_result=show,
+        calibrate_s=args.calibrate,
     )
     for result in fleet.results:
         if not result.error:

@@ -25,6 +25,7 @@ class PersistenceCarry:
     announced: int = int(MotorState.NORMAL)
     candidate: int = int(MotorState.NORMAL)
     candidate_since_s: float = float("-inf")
+    last_eligible_s: float = float("-inf")
 
 
 def announce(
@@ -33,8 +34,13 @@ def announce(
     state: NDArray[np.integer],
     eligible: NDArray[np.bool_],
     carry: PersistenceCarry = PersistenceCarry(),
+    max_gap_s: float = float("inf"),
 ) -> tuple[NDArray[np.int8], PersistenceCarry]:
-    """Announced state per sample given raw states; ``hold_s[code]`` is each state's hold time."""
+    """Announced state per sample given raw states; ``hold_s[code]`` is each state's hold time.
+
+    A run of one state also ends where two eligible samples are more than ``max_gap_s`` apart: a state
+    seen once, then again after a long silence, has not *held* in between.
+    """
     t = np.asarray(time_s, dtype=float)
     s = np.asarray(state, dtype=np.int64)
     idx = np.flatnonzero(eligible)
@@ -43,12 +49,13 @@ def announce(
     announced, candidate, since = carry.announced, carry.candidate, carry.candidate_since_s
     if idx.size:
         te, se = t[idx], s[idx]
-        boundaries = np.flatnonzero(np.diff(se)) + 1
+        boundaries = np.flatnonzero((np.diff(se) != 0) | (np.diff(te) > max_gap_s)) + 1
         starts = np.concatenate([[0], boundaries])
         ends = np.concatenate([boundaries, [se.size]])
         for start, end in zip(starts.tolist(), ends.tolist()):
             run_state = int(se[start])
-            run_since = since if (start == 0 and run_state == candidate) else float(te[start])
+            continues = start == 0 and run_state == candidate and te[0] - carry.last_eligible_s <= max_gap_s
+            run_since = since if continues else float(te[start])
             candidate, since = run_state, run_since
             if run_state == announced:
                 continue
@@ -65,4 +72,7 @@ def announce(
         values = np.asarray(change_to, dtype=np.int8)
         has = which >= 0
         out[has] = values[which[has]]
-    return out, PersistenceCarry(announced=announced, candidate=candidate, candidate_since_s=since)
+    last = float(t[idx[-1]]) if idx.size else carry.last_eligible_s
+    return out, PersistenceCarry(
+        announced=announced, candidate=candidate, candidate_since_s=since, last_eligible_s=last
+    )

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..model.dynamics import ResponseCarry, first_order_response, time_constant_s
-from ..model.equations import steady_state
+from ..model.equations import current_from_speed, steady_state
 from ..model.params import MotorParams
 from ..model.predict import predict_steady
 from ..telemetry.table import TelemetryTable
@@ -59,6 +59,8 @@ class MotorCarry:
 
     steady: SteadyCarry = field(default_factory=SteadyCarry)
     response: ResponseCarry = field(default_factory=ResponseCarry)
+    speed_residual: ResponseCarry = field(default_factory=ResponseCarry)
+    current_residual: ResponseCarry = field(default_factory=ResponseCarry)
     plausibility: PlausibilityCarry = field(default_factory=PlausibilityCarry)
     persistence: PersistenceCarry = field(default_factory=PersistenceCarry)
 
@@ -95,18 +97,43 @@ def diagnose_motor(
         tau = time_constant_s(params, model.omega_rad_s)
         omega_pred, response_carry = first_order_response(t, model.omega_rad_s, tau, carry.response)
         turning = omega_pred > 0
-        current_pred = np.where(turning, (v - params.k_e * omega_pred) / params.R_ohm, model.current_a)
-        lag = rule.lag_fraction
-        steady = (
-            (np.abs(omega_pred - model.omega_rad_s) <= lag * profile.speed_band_rad_s)
-            & (np.abs(current_pred - model.current_a) <= lag * profile.current_halfwidth_a(v))
-            & np.isfinite(v)
+        # Current from the torque balance (eq. 7 plus the inertia's share, J·dω/dt with dω/dt of the
+        # first-order response), not from eq. 2: eq. 2 would turn every sampled command jitter into
+        # current jitter divided by R (6 A per volt on the paper's motor).
+        accel = (model.omega_rad_s - omega_pred) / tau
+        inertia = params.J_kg_m2 or 0.0
+        current_pred = np.where(
+            turning, current_from_speed(params, omega_pred) + inertia * accel / params.k_t, model.current_a
         )
-        steady_carry = carry.steady
+        lag = rule.lag_fraction
+        # The input is known only at the samples: a sample is quasi-steady where the response has caught
+        # up with the steady state and the input has not stepped since the last samples (a command that
+        # jumps between samples hides what the motor saw in between).
+        held, steady_carry = steady_mask(rule, t, v, carry.steady)
+        steady = (
+            held
+            & (np.abs(omega_pred - model.omega_rad_s) <= lag * profile.speed_band_rad_s)
+            & (np.abs(current_pred - model.current_a) <= lag * profile.current_halfwidth_a(v))
+        )
     else:
         omega_pred, current_pred = model.omega_rad_s, model.current_a
         steady, steady_carry = steady_mask(rule, t, v, carry.steady)
         response_carry = carry.response
+    speed_carry, current_carry = carry.speed_residual, carry.current_residual
+    omega_seen = np.asarray(omega_rad_s, dtype=float)
+    current_seen = np.asarray(current_a, dtype=float)
+    if rule.residual_tau_s > 0:
+        # Commands are sampled, the motor sees every control cycle in between: the residual carries the
+        # aliased control noise. Low-passing the residual (not the measurement) keeps a fault's lasting
+        # offset and averages that noise, as the paper's moving average did for the current.
+        speed_res, speed_carry = first_order_response(
+            t, omega_seen - omega_pred, rule.residual_tau_s, speed_carry
+        )
+        current_res, current_carry = first_order_response(
+            t, current_seen - current_pred, rule.residual_tau_s, current_carry
+        )
+        omega_seen = np.where(np.isfinite(omega_seen), omega_pred + speed_res, np.nan)
+        current_seen = np.where(np.isfinite(current_seen), current_pred + current_res, np.nan)
     reported = current_a if sensor_current_a is None else sensor_current_a
     flags, plausibility_carry = check_motor(
         profile.plausibility, t, command, reported, omega_rad_s, carry.plausibility
@@ -116,9 +143,9 @@ def diagnose_motor(
     current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_a)
     state = classify(
         profile,
-        omega_rad_s=omega_rad_s,
+        omega_rad_s=omega_seen,
         omega_model_rad_s=omega_pred,
-        current_a=current_a,
+        current_a=current_seen,
         current_model_a=current_pred,
         voltage_v=v,
         bus_voltage_v=bus_voltage_v,
@@ -130,7 +157,7 @@ def diagnose_motor(
     if command is not None and profile.min_command > 0:
         eligible &= ~(np.asarray(command, dtype=float) < profile.min_command)  # idle and spin-up: not judged
     announced, persistence_carry = announce(
-        profile.persistence.hold_s(), t, state, eligible, carry.persistence
+        profile.persistence.hold_s(), t, state, eligible, carry.persistence, profile.persistence.max_gap_s
     )
     columns = {
         "state": state,
@@ -143,6 +170,8 @@ def diagnose_motor(
     new_carry = MotorCarry(
         steady=steady_carry,
         response=response_carry,
+        speed_residual=speed_carry,
+        current_residual=current_carry,
         plausibility=plausibility_carry,
         persistence=persistence_carry,
     )

@@ -40,6 +40,7 @@ class SteadyRule:
     settle_s: float = 0.3
     kind: str = "step"
     lag_fraction: float = 0.5
+    residual_tau_s: float = 0.0
 
     def __post_init__(self) -> None:
         if not (self.step_v > 0 and self.settle_s >= 0):
@@ -58,12 +59,14 @@ class SteadyRule:
 class PersistenceRule:
     """How long a state must hold before it is announced (``announce_s``), per state label.
 
-    ``default_announce_s`` applies to states not listed. Returning to NORMAL uses ``clear_s``.
+    ``default_announce_s`` applies to states not listed. Returning to NORMAL uses ``clear_s``. A run
+    ends where eligible samples are more than ``max_gap_s`` apart (sparse quasi-steady samples in gusts).
     """
 
     default_announce_s: float = 0.1
     announce_s: tuple[tuple[str, float], ...] = ()
     clear_s: float = 0.5
+    max_gap_s: float = float("inf")
 
     def __post_init__(self) -> None:
         values = [self.default_announce_s, self.clear_s, *(v for _, v in self.announce_s)]

@@ -65,7 +65,7 @@ def fault_masks(
         end = fault.get("end_s")
         if end is not None:
             sel &= result["time_s"] < float(end)
-        label[sel] = fault["kind"]
+        label[sel] = fault.get("fault", fault.get("kind"))
     return label == "", label
 
 
@@ -74,7 +74,7 @@ def _quantile(x: NDArray[np.float64], q: float) -> float:
     return float(np.quantile(x, q)) if x.size else float("nan")
 
 
-def _longest_runs(result: TelemetryTable, healthy: NDArray[np.bool_]) -> dict[int, float]:
+def _longest_runs(result: TelemetryTable, healthy: NDArray[np.bool_], max_gap_s: float) -> dict[int, float]:
     """Longest duration [s] of each raw state other than NORMAL over eligible healthy samples, per motor run."""
     longest: dict[int, float] = {}
     eligible = (result["steady"] | np.isin(result["state"], [MotorState.F2_1, MotorState.F4_2])) & healthy
@@ -83,15 +83,16 @@ def _longest_runs(result: TelemetryTable, healthy: NDArray[np.bool_]) -> dict[in
         if sel.size == 0:
             continue
         t, s = result["time_s"][sel], result["state"][sel].astype(np.int64)
-        edges = np.flatnonzero(np.diff(s)) + 1
+        edges = np.flatnonzero((np.diff(s) != 0) | (np.diff(t) > max_gap_s)) + 1
         starts = np.concatenate([[0], edges])
         ends = np.concatenate([edges, [s.size]])
         for a, b in zip(starts, ends):
             code = int(s[a])
             if code in (MotorState.NORMAL, MotorState.NO_DATA):
                 continue
-            # the run lasts until the next eligible sample with another state
-            stop = t[b] if b < s.size else t[b - 1]
+            # the run lasts until the next eligible sample with another state (or until its last sample
+            # when a gap ends it)
+            stop = t[b] if b < s.size and t[b] - t[b - 1] <= max_gap_s else t[b - 1]
             longest[code] = max(longest.get(code, 0.0), float(stop - t[a]))
     return longest
 
@@ -112,8 +113,8 @@ def tune_profile(
     params: MotorParams | dict[int, MotorParams],
     base: ThresholdProfile,
     *,
-    quantile: float = 0.999,
-    margin: float = 1.25,
+    quantile: float = 0.99,
+    margin: float = 1.5,
     voltage_bins: int = 6,
     min_hold_s: float = 0.1,
     name: str = "flight",
@@ -174,6 +175,7 @@ def tune_profile(
     profile = replace(
         base,
         name=name,
+        description=f"{base.name} tuned on {len(flights)} labelled flights",
         speed_band_rad_s=round(speed_band, 3),
         current_band_a=band,
         stall_split_a=round(split_a, 3),
@@ -186,7 +188,7 @@ def tune_profile(
         tuned = [diagnose(f.table, params, profile) for f in flights]
         longest: dict[int, float] = {}
         for r, (healthy, _) in zip(tuned, masks):
-            for code, dur in _longest_runs(r, healthy).items():
+            for code, dur in _longest_runs(r, healthy, profile.persistence.max_gap_s).items():
                 longest[code] = max(longest.get(code, 0.0), dur)
         holds = tuple(
             (MotorState(code).label, round(max(min_hold_s, margin * dur), 3))
@@ -198,6 +200,7 @@ def tune_profile(
                 default_announce_s=max(min_hold_s, base.persistence.default_announce_s),
                 clear_s=base.persistence.clear_s,
                 announce_s=holds,
+                max_gap_s=base.persistence.max_gap_s,
             ),
         )
         checked = [diagnose(f.table, params, profile) for f in flights]

@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .effects.base import Effect, ModelTerms, compose, solve
+from .effects.library import BUILTIN_EFFECTS
 from .effects.user import available_effects, resolve
 from .equations import SteadyState, steady_state
 from .params import MotorParams
@@ -22,8 +23,10 @@ def model_terms(
     registry: Mapping[str, Effect] | None = None,
 ) -> ModelTerms:
     """The composed model's terms for ``params`` and its ``effects`` (resolved in ``registry``)."""
-    registry = registry if registry is not None else available_effects()
     names = [name for name, _ in params.effects]
+    if registry is None:
+        # Built-ins need no search of the installed packages (the live agent calls this per sample).
+        registry = BUILTIN_EFFECTS if all(n in BUILTIN_EFFECTS for n in names) else available_effects()
     effects = resolve(names, registry)
     return compose(
         params,

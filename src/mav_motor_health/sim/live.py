@@ -254,7 +254,7 @@ class SimVehicle:
             while self.sim.time_s + dt <= target and steps < 2000:
                 for s in self.sim.step():
                     j = s.motor - 1
-                    self._latest_esc[j] = (s.temp_c, s.voltage_cv, s.esc_current_ca, 0, s.rpm, s.count)
+                    self._latest_esc[j] = (s.temp_c, s.voltage_cv, s.esc_current_ca, 0, s.rpm, s.reports)
                 self._send_due()
                 steps += 1
             if steps >= 2000:  # cannot keep up: let simulated time slip rather than spin

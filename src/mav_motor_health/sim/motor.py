@@ -149,7 +149,7 @@ class MotorBank:
         torque = kick - d.hold_drag_nm_s * w - (cp * w**p.k + p.B * w + p.T_f)
         w_stall = np.maximum(w + dt * torque / (d.inertia_kg_m2 + dt * load_slope), 0.0)
         # The stall current: its level, a ripple with the retries, and (F4.2) a slow random wander.
-        self._stall_wander_a += -self._stall_wander_a * dt / 1.5 + 0.45 * np.sqrt(2 * dt / 1.5) * (
+        self._stall_wander_a += -self._stall_wander_a * dt / 1.5 + 0.6 * np.sqrt(2 * dt / 1.5) * (
             self.rng.standard_normal(self.n)
         )
         ripple = np.where(fx.back_emf_lost, 0.35, 0.8) * np.sin(2 * np.pi * phase / d.restart_period_s)

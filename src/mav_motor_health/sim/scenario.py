@@ -62,9 +62,9 @@ __all__ = ["TURBULENCE", "FlightSpec", "Scenario", "Segment", "load_scenario", "
 #: turbulence presets: wind standard deviation [m/s], torque disturbance standard deviation [N·m],
 #: gyro noise the rate controller sees [rad/s] (vibration grows with rough air and hard manoeuvring)
 TURBULENCE: dict[str, tuple[float, float, float]] = {
-    "calm": (0.3, 0.004, 0.03),
-    "moderate": (1.5, 0.02, 0.15),
-    "gusty": (3.5, 0.06, 0.5),
+    "calm": (0.3, 0.004, 0.015),
+    "moderate": (1.5, 0.03, 0.12),
+    "gusty": (3.5, 0.08, 0.35),
 }
 SEGMENT_KINDS = ("hover", "climb", "descend", "translate")
 
@@ -282,6 +282,7 @@ def scenario_from_dict(data: dict[str, Any], path: Path | str = "<scenario>") ->
         dropout=se.number("dropout", 0.0, minimum=0.0, maximum=0.9),
         burst_per_hour=se.number("burst_per_hour", 0.0, minimum=0.0),
         burst_s=se.number("burst_s", 1.0, minimum=0.0, unit="s"),
+        current_filter_s=se.number("current_filter_s", 0.02, minimum=0.0, maximum=1.0, unit="s"),
     )
     se.done()
     out = top.table("output")

@@ -6,7 +6,9 @@
   growing with the input voltage from ±0.15 A at 4 V to ±1.0 A at 11 V (section III.B, the same
   :class:`~mav_motor_health.sim.steady.SensorNoise` the steady-state tools use);
 * quantisation as MAVLink carries it: integer rpm, current in cA, voltage in cV, integer °C;
-* dropouts: single lost samples with probability ``dropout``, and rare bursts of ``burst_s`` seconds.
+* dropouts: single lost samples with probability ``dropout``, and rare bursts of ``burst_s`` seconds;
+* the current is sensed through a first-order filter (``current_filter_s``, 20 ms by default): in
+  steady state it changes nothing, in fast transients the current lags the speed.
 
 The ESC reports its *input* current (``duty × motor current``); the motor current in the CSV is that
 divided by the duty, i.e. the same quantised reading.
@@ -39,6 +41,8 @@ class SensorSpec:
     dropout: float = 0.0
     burst_per_hour: float = 0.0
     burst_s: float = 1.0
+    #: time constant of the ESC's current-sense filter [s] (0: none)
+    current_filter_s: float = 0.02
 
 
 class EscSample(NamedTuple):
@@ -53,7 +57,8 @@ class EscSample(NamedTuple):
     temp_c: int
     motor_temp_c: int
     duty: float
-    count: int
+    #: how many reports this ESC has sent (ESC_TELEMETRY "count")
+    reports: int
 
 
 class EscSensors:
@@ -71,6 +76,7 @@ class EscSensors:
         )
         self._burst_until = np.full(n, -1.0)
         self._next_min_s = float(self.next_s.min())
+        self._filtered_a: NDArray[np.float64] | None = None
 
     def due(self, time_s: float) -> NDArray[np.bool_]:
         return self.next_s <= time_s
@@ -87,6 +93,13 @@ class EscSensors:
         motor_temp_c: NDArray[np.float64],
     ) -> list[EscSample]:
         """Reports of every ESC whose clock ticked by ``time_s`` (call once per simulation step)."""
+        # The ESC's current sense is filtered (first order): in fast transients it lags the speed.
+        tau = self.spec.current_filter_s
+        if tau > 0 and self._filtered_a is not None:
+            self._filtered_a += (motor_current_a - self._filtered_a) * (1.0 - math.exp(-dt / tau))
+            motor_current_a = self._filtered_a
+        else:
+            self._filtered_a = np.array(motor_current_a, dtype=float)
         if time_s < self._next_min_s:
             return []
         due = np.flatnonzero(self.next_s <= time_s)

@@ -92,7 +92,7 @@ def follow_chain(
     that start no record (a logger stopped mid-header) are not counted as damage.
     """
     n = len(starts)
-    if n == 0:
+    if n == 0 or first >= n:
         return np.zeros(0, dtype=np.int64)
     # Successor of every candidate, found for all at once: its index, or END / BROKEN / CUT.
     end, broken, cut = -2, -1, -3

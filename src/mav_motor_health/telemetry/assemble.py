@@ -7,6 +7,10 @@ Every log reader decodes its own format and then calls :func:`motor_table` with
 * the motor commands (throttle 0..1 per motor, with their own times);
 * context signals (battery, altitude, climb rate, air temperature, armed...), each with its own times.
 
+The ESC reports its input current (``esc_current_a``, kept as the sensor's reading); the motor's voltage
+and current follow from the command with :func:`.mavlink_esc.motor_inputs`, the very function the live
+agent uses, so a replayed log and the same flight streamed live give the same table.
+
 Commands and context are aligned to each ESC sample by previous-value hold (the last value at or before
 the sample), so no value from the future is ever used — the same view the live agent has.
 """
@@ -22,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import DataError
+from . import mavlink_esc
 from ._logscan import hold_previous
 from .table import TelemetryTable
 
@@ -115,6 +120,11 @@ def motor_table(
         if len(series[0]):
             t, v = _sorted_series(series)
             columns[name] = hold_previous(t, v, time_s, CONTEXT_MAX_AGE_S)
+    # What the motor sees, exactly as the live agent computes it (ESC as an ideal PWM stage):
+    # voltage_v = throttle × bus voltage, current_a = ESC current / throttle (NaN at a tiny command).
+    columns["voltage_v"], columns["current_a"] = mavlink_esc.motor_inputs(
+        throttle, columns["bus_voltage_v"], columns["esc_current_a"]
+    )
     return TelemetryTable(columns, source=str(path), meta=dict(meta))
 
 

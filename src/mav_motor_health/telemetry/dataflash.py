@@ -18,6 +18,7 @@ servo output ``i+1``, so its motor follows from ``SERVO{i+1}_FUNCTION`` (see :mo
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +33,7 @@ from ._logscan import Damage, follow_chain, gather_rows
 from .assemble import EscSamples, Series, motor_table, no_esc_error
 from .table import TelemetryTable
 
-__all__ = ["DataflashLog", "read_dataflash", "read_records"]
+__all__ = ["DataflashLog", "read_dataflash", "read_dataflash_text", "read_records", "read_text_records"]
 
 HEAD = (0xA3, 0x95)
 FMT_TYPE = 128
@@ -104,8 +105,19 @@ class DataflashLog:
         return self.records[name]
 
 
-def _text(raw: bytes) -> str:
+def _text(raw: bytes | str) -> str:
+    if isinstance(raw, str):
+        return raw
     return raw.split(b"\0", 1)[0].decode("ascii", "replace")
+
+
+def _time_us(rec: dict[str, NDArray[Any]]) -> NDArray[np.int64] | None:
+    """A record type's timestamps [µs]: ``TimeUS``, or ``TimeMS`` in old logs; None if it has neither."""
+    if "TimeUS" in rec:
+        return np.asarray(rec["TimeUS"]).astype(np.int64)
+    if "TimeMS" in rec:
+        return (np.asarray(rec["TimeMS"], dtype=float) * 1000).astype(np.int64)
+    return None
 
 
 def _scan_formats(data: NDArray[np.uint8], heads: NDArray[np.int64]) -> dict[int, RecordFormat]:
@@ -226,19 +238,20 @@ def _first_instance(rec: dict[str, NDArray[Any]], key: str) -> NDArray[np.bool_]
 def read_dataflash(path: str | Path) -> TelemetryTable:
     """Read a ``.bin`` DataFlash log into the telemetry table (one row per ESC record)."""
     path = Path(path)
-    log = read_records(path)
-    if "ESC" not in log:
-        raise no_esc_error(
-            path,
-            "ArduPilot DataFlash (.bin)",
-            log.counts,
-            "ESC records: set LOG_BITMASK to log ESC telemetry",
-        )
-    times = [log[n]["TimeUS"] for n in ("ESC", "RCOU", "BAT", "PARM") if n in log]
-    origin_us = int(min(int(t.min()) for t in times if len(t)))
+    return _dataflash_table(path, read_records(path), "ArduPilot DataFlash (.bin)")
+
+
+def _dataflash_table(path: Path, log: DataflashLog, kind: str) -> TelemetryTable:
+    """The telemetry table from decoded DataFlash records (binary or text)."""
+    if "ESC" not in log or _time_us(log["ESC"]) is None:
+        raise no_esc_error(path, kind, log.counts, "ESC records: set LOG_BITMASK to log ESC telemetry")
+    times = [_time_us(log[n]) for n in ("ESC", "RCOU", "BAT", "PARM") if n in log]
+    origin_us = int(min(int(stamps.min()) for stamps in times if stamps is not None and len(stamps)))
 
     def seconds(rec: dict[str, NDArray[Any]]) -> NDArray[np.float64]:
-        return (rec["TimeUS"].astype(np.int64) - origin_us) / 1e6
+        t = _time_us(rec)
+        assert t is not None
+        return (t - origin_us) / 1e6
 
     params: dict[str, float] = {}
     if "PARM" in log:
@@ -258,7 +271,7 @@ def read_dataflash(path: str | Path) -> TelemetryTable:
     slots = sorted(set(samples.slot.tolist()))
     motor_of_slot = {s: mavlink_esc.motor_for_output(s + 1, params) for s in slots}
     commands: dict[int, Series] = {}
-    if "RCOU" in log:
+    if "RCOU" in log and _time_us(log["RCOU"]) is not None:
         rec = log["RCOU"]
         t = seconds(rec)
         low, high = mavlink_esc.pwm_range(params)
@@ -269,22 +282,22 @@ def read_dataflash(path: str | Path) -> TelemetryTable:
             commands[motor] = (t, mavlink_esc.throttle_from_pwm(rec[f"C{output}"].astype(float), low, high))
     context: dict[str, Series] = {}
     battery: Series | None = None
-    if "BAT" in log:
+    if "BAT" in log and _time_us(log["BAT"]) is not None:
         rec = log["BAT"]
         sel = _first_instance(rec, "Inst" if "Inst" in rec else "Instance")
         t = seconds(rec)[sel]
         battery = (t, rec["Volt"][sel].astype(float))
         context["battery_voltage_v"] = battery
         context["battery_current_a"] = (t, rec["Curr"][sel].astype(float))
-    if "CTUN" in log:
+    if "CTUN" in log and _time_us(log["CTUN"]) is not None and "Alt" in log["CTUN"]:
         rec = log["CTUN"]
         context["alt_m"] = (seconds(rec), rec["Alt"].astype(float))
         if "CRt" in rec:
             context["climb_m_s"] = (seconds(rec), rec["CRt"].astype(float) / 100.0)  # cm/s in CTUN
-    elif "POS" in log:
+    elif "POS" in log and _time_us(log["POS"]) is not None:
         rec = log["POS"]
         context["alt_m"] = (seconds(rec), rec["RelHomeAlt"].astype(float))
-    if "BARO" in log:
+    if "BARO" in log and _time_us(log["BARO"]) is not None and "Temp" in log["BARO"]:
         rec = log["BARO"]
         sel = _first_instance(rec, "I")
         context["air_temp_c"] = (seconds(rec)[sel], rec["Temp"][sel].astype(float))
@@ -300,11 +313,10 @@ def read_dataflash(path: str | Path) -> TelemetryTable:
     for key in ("FRAME_CLASS", "FRAME_TYPE"):
         if key in params:
             vehicle_info[key.lower()] = int(params[key])
-    end_us = max(
-        int(log[n]["TimeUS"].max()) for n in log.records if "TimeUS" in log[n] and len(log[n]["TimeUS"])
-    )
+    ends = [_time_us(log[n]) for n in log.records]
+    end_us = max(int(stamps.max()) for stamps in ends if stamps is not None and len(stamps))
     meta = {
-        "format": "dataflash",
+        "format": "dataflash" if kind.endswith("(.bin)") else "dataflash-text",
         "params": params,
         "vehicle": vehicle_info,
         "motors": mavlink_esc.expected_motors(params) or sorted({m for m in motor_of_slot.values() if m}),
@@ -315,3 +327,83 @@ def read_dataflash(path: str | Path) -> TelemetryTable:
         "pwm_range_us": list(mavlink_esc.pwm_range(params)),
     }
     return motor_table(path, samples, motor_of_slot, commands, context, meta, battery)
+
+
+def read_text_records(
+    path: str | Path, names: Iterable[str] = USED_RECORDS, *, warn: bool = True
+) -> DataflashLog:
+    """Decode a DataFlash *text* log (``.log``: ``NAME, value, value...`` lines after ``FMT`` lines).
+
+    Values in text logs are already scaled. Lines that are not records (a banner) are skipped; a record
+    with the wrong number of fields or a non-numeric value is skipped as damage (one warning naming the
+    first line).
+    """
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="ascii", errors="replace").splitlines()
+    except OSError as exc:
+        raise LogFormatError(f"cannot read: {exc.strerror or exc}", path=path) from exc
+    out = DataflashLog()
+    wanted = set(names)
+    rows: dict[str, list[list[str]]] = {}
+    bad_lines: list[int] = []
+    for number, line in enumerate(lines, start=1):
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) < 2:
+            continue
+        name = parts[0]
+        if name == "FMT" and len(parts) >= 5:
+            try:
+                ftype, length = int(parts[1]), int(parts[2])
+            except ValueError:
+                bad_lines.append(number)
+                continue
+            column_names = tuple(c for c in parts[5:] if c)
+            out.formats[parts[3]] = RecordFormat(ftype, parts[3], length, parts[4], column_names)
+            continue
+        fmt = out.formats.get(name)
+        if fmt is None:
+            continue  # a banner line ("ArduCopter V3.1", "Free RAM: ...")
+        out.counts[name] = out.counts.get(name, 0) + 1
+        if name not in wanted:
+            continue
+        values = parts[1:]
+        if len(values) != len(fmt.columns):
+            bad_lines.append(number)
+            out.counts[name] -= 1
+            continue
+        rows.setdefault(name, []).append(values)
+    for name, records in rows.items():
+        fmt = out.formats[name]
+        columns: dict[str, NDArray[Any]] = {}
+        for k, (column, char) in enumerate(zip(fmt.columns, fmt.format)):
+            cells = [r[k] for r in records]
+            if char in "nNZ":
+                columns[column] = np.array(cells, dtype=object)
+                continue
+            numbers = np.full(len(cells), np.nan)
+            for i, cell in enumerate(cells):
+                try:
+                    numbers[i] = float(cell)
+                except ValueError:
+                    bad_lines.append(-1)
+            columns[column] = numbers
+        out.records[name] = columns
+    if bad_lines:
+        first = min(n for n in bad_lines if n > 0) if any(n > 0 for n in bad_lines) else 0
+        out.damage.bad_records = len(bad_lines)
+        if warn:
+            warnings.warn(
+                f"{path}: damaged text log at line {first} ({len(bad_lines)} record(s) or value(s) "
+                "unreadable, skipped); the rest was read",
+                stacklevel=2,
+            )
+    if not out.formats:
+        raise LogFormatError("no FMT line found: not an ArduPilot DataFlash text log", path=path, offset=0)
+    return out
+
+
+def read_dataflash_text(path: str | Path) -> TelemetryTable:
+    """Read a DataFlash text log (``.log``) into the telemetry table, as :func:`read_dataflash` does."""
+    path = Path(path)
+    return _dataflash_table(path, read_text_records(path), "ArduPilot DataFlash text (.log)")

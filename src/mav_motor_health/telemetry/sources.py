@@ -36,6 +36,12 @@ def _read_dataflash(path: Path) -> TelemetryTable:
     return read_dataflash(path)
 
 
+def _read_dataflash_text(path: Path) -> TelemetryTable:
+    from .dataflash import read_dataflash_text
+
+    return read_dataflash_text(path)
+
+
 def _read_ulog(path: Path) -> TelemetryTable:
     from .ulog import read_ulog
 
@@ -48,6 +54,7 @@ READERS: dict[str, Callable[[Path], TelemetryTable]] = {
     ".tlog": _read_tlog,
     ".bin": _read_dataflash,
     ".ulg": _read_ulog,
+    ".log": _read_dataflash_text,
     ".txt": _read_bench,
 }
 

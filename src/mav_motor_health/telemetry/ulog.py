@@ -336,9 +336,10 @@ def read_ulog(path: str | Path) -> TelemetryTable:
     motors_topic = log.get("actuator_motors")
     if motors_topic is not None:
         tm = _seconds(motors_topic, origin)
-        for j, motor in motor_of_slot.items():
-            if motor is not None and j < motors_topic["control"].shape[1]:
-                commands[motor] = (tm, np.clip(motors_topic["control"][:, j].astype(float), 0.0, 1.0))
+        for motor in motor_of_slot.values():
+            # actuator_motors.control[i] is Motor i+1 (not ESC slot i)
+            if motor is not None and motor - 1 < motors_topic["control"].shape[1]:
+                commands[motor] = (tm, np.clip(motors_topic["control"][:, motor - 1].astype(float), 0.0, 1.0))
         throttle_source = "actuator_motors"
     elif (
         "esc_setpoint_raw" in report_fields and (esc_status["esc_connectiontype"] == ESC_CONNECTION_CAN).all()
@@ -355,12 +356,23 @@ def read_ulog(path: str | Path) -> TelemetryTable:
         outputs = log.get("actuator_outputs")
         assert outputs is not None
         to = _seconds(outputs, origin)
-        for j, motor in motor_of_slot.items():
+        for motor in motor_of_slot.values():
             if motor is None:
                 continue
-            low = float(log.params.get(f"PWM_MAIN_MIN{j + 1}", log.params.get("PWM_MIN", 1000.0)))
-            high = float(log.params.get(f"PWM_MAIN_MAX{j + 1}", log.params.get("PWM_MAX", 2000.0)))
-            commands[motor] = (to, mavlink_esc.throttle_from_pwm(outputs["output"][:, j], low, high))
+            # the output whose PWM_MAIN_FUNCn is this motor's function (101 = Motor1), else output n = motor n
+            n = next(
+                (
+                    k
+                    for k in range(1, outputs["output"].shape[1] + 1)
+                    if log.params.get(f"PWM_MAIN_FUNC{k}") == mavlink_esc.PX4_MOTOR_FUNCTION_FIRST + motor - 1
+                ),
+                motor,
+            )
+            if n > outputs["output"].shape[1]:
+                continue
+            low = float(log.params.get(f"PWM_MAIN_MIN{n}", log.params.get("PWM_MIN", 1000.0)))
+            high = float(log.params.get(f"PWM_MAIN_MAX{n}", log.params.get("PWM_MAX", 2000.0)))
+            commands[motor] = (to, mavlink_esc.throttle_from_pwm(outputs["output"][:, n - 1], low, high))
         throttle_source = "actuator_outputs[0] (PWM)"
     context: dict[str, Series] = {}
     battery: Series | None = None

@@ -58,8 +58,9 @@ def plot_comparison(
                 ("current_a", "current_model_a", "current [A]"),
             ),
         ):
-            ax.plot(x, s[meas][idx], ".", ms=2, alpha=0.4, label="measured")
-            ax.plot(x, s[model][idx], ".", ms=2, color="C3", label="model")
+            size = 2 if len(idx) > 300 else 6  # bench files: a few points, drawn larger
+            ax.plot(x, s[meas][idx], ".", ms=size, alpha=0.5, label="measured")
+            ax.plot(x, s[model][idx], "x" if size > 2 else ".", ms=size, color="C3", label="model")
             ax.set_ylabel(unit)
             ax.legend(loc="upper left", markerscale=4)
         axes[-1].set_xlabel(label)

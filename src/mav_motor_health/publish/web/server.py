@@ -59,10 +59,10 @@ def state_kinds() -> dict[str, dict[str, Any]]:
             kind = "ok"
         elif state is MotorState.NO_DATA:
             kind = "nodata"
-        elif state is MotorState.SENSOR_FAULT:
-            kind = "sensor"
-        else:
+        elif state.is_fault:
             kind = "fault"
+        else:  # SENSOR_FAULT: the signal, not the motor, is suspect
+            kind = "sensor"
         kinds[state.label] = {"code": int(state), "description": state.description, "kind": kind}
     return kinds
 

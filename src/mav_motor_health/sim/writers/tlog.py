@@ -167,6 +167,8 @@ def _add_esc_stream(record: SimRecord, mav: Any, add: Any) -> None:
                 latest.append(None)
                 continue
             s = samples[int(sel[k])]
-            latest.append((s.temp_c, s.voltage_cv, s.esc_current_ca, round(float(total[k])), s.rpm, s.count))
+            latest.append(
+                (s.temp_c, s.voltage_cv, s.esc_current_ca, round(float(total[k])), s.rpm, s.reports)
+            )
         for msg in esc_telemetry_messages(mav, latest):
             add(float(tick), msg)

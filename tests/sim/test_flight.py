@@ -1,0 +1,91 @@
+"""The simulated hexacopter: control makes every motor's input fluctuate; a failed motor's command
+saturates while the others take the load; runs are reproducible."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mav_motor_health.sim.engine import Simulation, run_scenario
+from mav_motor_health.sim.scenario import scenario_from_dict
+from mav_motor_health.sim.vehicle import HEXA_X, Airframe
+
+
+def flight(turbulence="calm", faults=(), duration=20.0, seed=3, segments=()):
+    return scenario_from_dict(
+        {
+            "scenario": {"mode": "flight", "duration_s": duration, "seed": seed, "dt_s": 0.01},
+            "flight": {"turbulence": turbulence, "segment": list(segments)},
+            "fault": list(faults),
+        }
+    )
+
+
+def test_hexa_x_layout_is_ardupilots():
+    # AP_MotorsMatrix.cpp, HEXA X: motor 1 at +90° CW, 2 at −90° CCW, 3 at −30° CW, 4 at 150° CCW,
+    # 5 at 30° CCW, 6 at −150° CW (yaw factor CW −1, CCW +1)
+    assert HEXA_X == ((90.0, -1.0), (-90.0, 1.0), (-30.0, -1.0), (150.0, 1.0), (30.0, 1.0), (-150.0, -1.0))
+    x, y, yaw = Airframe().geometry()
+    assert y[0] > 0 and abs(x[0]) < 1e-12  # motor 1 on the right arm
+    assert yaw.sum() == 0
+
+
+def test_same_seed_same_flight_different_seed_different_noise():
+    a = run_scenario(flight(duration=3.0, seed=5))
+    b = run_scenario(flight(duration=3.0, seed=5))
+    c = run_scenario(flight(duration=3.0, seed=6))
+    assert a.esc == b.esc
+    assert a.esc != c.esc
+
+
+def test_motor_inputs_fluctuate_more_in_rougher_air():
+    spread = {}
+    for level in ("calm", "moderate", "gusty"):
+        rec = run_scenario(flight(level, duration=8.0))
+        duty = np.array([v.duty for v in rec.vehicle[20:]])
+        assert np.all(duty.std(axis=0) > 0.002)  # every motor's input moves
+        spread[level] = float(duty.std(axis=0).mean())
+        assert abs(rec.vehicle[-1].alt_m - 10.0) < 1.5  # and the vehicle holds its altitude
+    assert spread["calm"] < spread["moderate"] < spread["gusty"]
+
+
+def test_manoeuvres_climb_translate_descend():
+    segs = [
+        {"kind": "climb", "duration_s": 4.0, "speed_m_s": 1.0},
+        {"kind": "translate", "duration_s": 5.0, "speed_m_s": 2.0, "heading_deg": 90.0},
+        {"kind": "descend", "duration_s": 2.0, "speed_m_s": 1.0},
+    ]
+    rec = run_scenario(flight(segments=segs, duration=16.0))
+    alt = {round(v.time_s, 2): v.alt_m for v in rec.vehicle}
+    assert alt[4.0] == pytest.approx(14.0, abs=0.8)
+    assert alt[16.0] == pytest.approx(12.0, abs=0.8)
+    east = (rec.vehicle[-1].lon_deg - rec.vehicle[0].lon_deg) * 111_320 * np.cos(np.radians(37.5665))
+    assert east == pytest.approx(10.0, abs=2.5)
+
+
+@pytest.mark.parametrize("fault", ["F2.1", "F4.2"])
+def test_failed_motor_saturates_and_the_others_take_the_load(fault):
+    sc = flight("calm", [{"kind": fault, "motor": 1, "onset_s": 5.0}], duration=11.0)
+    sim = Simulation(sc)
+    duty_before = thrust_before = None
+    while sim.time_s < 11.0:
+        sim.step()
+        if duty_before is None and sim.time_s >= 4.9:
+            duty_before = sim.duty.copy()
+            thrust_before = sim.bank.omega_rad_s.copy() ** 2
+    assert sim.duty[0] == pytest.approx(1.0)  # the lost motor's command saturates
+    assert sim.ctrl is not None and sim.ctrl.lost[0]
+    assert sim.bank.omega_rad_s[0] < 100.0
+    # motors 3 to 6 carry the vehicle now (motor 2, opposite motor 1, is throttled back to balance it)
+    assert np.all(sim.bank.omega_rad_s[2:] ** 2 > 1.1 * thrust_before[2:])
+    assert np.all(sim.duty[2:] > duty_before[2:])
+    assert sim.body is not None and sim.body.alt_m > 5.0
+
+
+def test_turning_fault_in_flight_is_compensated_by_its_own_command():
+    """F4.1 weakens motor 2: the controller gives it more command to keep its thrust."""
+    sc = flight("calm", [{"kind": "F4.1", "motor": 2, "onset_s": 3.0}], duration=8.0)
+    rec = run_scenario(sc)
+    before = np.mean([v.duty[1] for v in rec.vehicle if 1.0 < v.time_s < 3.0])
+    after = np.mean([v.duty[1] for v in rec.vehicle if 5.0 < v.time_s < 8.0])
+    assert after > before + 0.05
