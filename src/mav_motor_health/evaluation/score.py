@@ -15,8 +15,8 @@ Metrics:
   accuracy on healthy data (:func:`~mav_motor_health.model.estimation.accuracy_pct`, mean of speed and
   current), given when the diagnosis has the measured and modelled columns;
 * **time to detection** — from onset to the first announced state equal to the true fault;
-* **false fault events per hour** — announcements of a fault on a healthy motor (or before onset), per
-  hour of flight.
+* **false fault events per hour** — announcements of any fault state (the five faults, UNKNOWN, and the
+  speed-only SLOW/STALLED/FAST) on a healthy motor (or before onset), per hour of flight.
 """
 
 from __future__ import annotations
@@ -46,6 +46,8 @@ PAPER: dict[str, Any] = {
     "flight_F4.2_error_pct": 2.44,
     "flight_normal_accuracy_pct": 99.11,
 }
+#: Every state that says a motor is faulty (the five faults, UNKNOWN and the speed-only SLOW/STALLED/FAST).
+_FAULT_CODES = [int(state) for state in MotorState if state.is_fault]
 _TURBULENCE_TEST = {"calm": "test 1 (calm)", "moderate": "test 2 (moderate)", "gusty": "test 3 (gusty)"}
 
 
@@ -174,9 +176,7 @@ def score(diagnosis: Mapping[str, NDArray[Any]], truth: Mapping[str, Any]) -> Sc
     for m in np.unique(motor):
         sel = np.flatnonzero((motor == m) & healthy)
         a = announced[sel]
-        is_fault = np.isin(
-            a, [MotorState.F1_1, MotorState.F2_1, MotorState.F3_1, MotorState.F4_1, MotorState.F4_2]
-        )
+        is_fault = np.isin(a, _FAULT_CODES)
         false_events += int(np.sum(is_fault[1:] & (a[1:] != a[:-1]))) + int(is_fault[:1].sum())
     return Score(
         fault=None if f is None else str(f["fault"]),
