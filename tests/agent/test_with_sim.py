@@ -307,3 +307,37 @@ def test_sim_over_tcp_reconnects_after_the_vehicle_restarts(agent_port):
             assert agent.tracker.losses >= 1
 
     asyncio.run(main())
+
+
+def test_cli_demo_runs_the_agent_on_the_simulated_hexacopter(tmp_path):
+    """The README's main command, shortened: ``agent --sim --fault F2.1@2:2 --duration 8``."""
+    import os
+    import subprocess
+    import sys
+
+    from agent_parts import REPO
+
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mav_motor_health",
+            "agent",
+            "--sim",
+            "--fault",
+            "F2.1@2:2",
+            "--duration",
+            "8",
+            "--no-tui",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env={**os.environ, "PYTHONPATH": str(REPO / "src")},
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.splitlines()
+    assert sum("NO_DATA -> NORMAL" in line for line in lines) == 6
+    assert any("motor 2:" in line and "-> F2.1 (phase open)" in line for line in lines), proc.stdout
+    assert "agent stopped" in proc.stderr
