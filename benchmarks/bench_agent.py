@@ -108,7 +108,7 @@ def agent_replay(path: Path, batch_s: float) -> tuple[float, int]:
 
 # -- 2. live ----------------------------------------------------------------------------------------
 def _vehicle(port_queue: mp.Queue, commands: mp.Queue) -> None:
-    from peer import VehiclePeer
+    from vehicle_peer import VehiclePeer
 
     with VehiclePeer(load_motor_params("paper_x2212"), seed=5) as peer:
         port_queue.put(peer.port)

@@ -21,6 +21,8 @@ from mav_motor_health.sim.steady import faulty_steady_state
 from mav_motor_health.telemetry import mavlink_esc
 from mav_motor_health.telemetry.table import TelemetryTable
 
+#: The .tlog starts with HEARTBEAT and parameters this long before the first sample.
+FIRST_RECORD_LEAD_US = 500_000
 #: Output → motor as SERVOn_FUNCTION says (outputs 1 and 2 swapped: the mapping must be honoured).
 FUNCTIONS = {1: 34, 2: 33, 3: 35, 4: 36, 5: 37, 6: 38, 7: 0, 8: 0}
 
@@ -108,7 +110,7 @@ def write_tlog(fields: FlightFields, path: Path) -> Path:
         out.extend(struct.pack(">Q", int(stamp)))
         out.extend(msg.pack(mav))
 
-    first = int(fields.stamp_us[0]) - 500_000
+    first = int(fields.stamp_us[0]) - FIRST_RECORD_LEAD_US
     put(first, mav.heartbeat_encode(13, 3, 0, 0, 4))
     for n, (output, function) in enumerate(FUNCTIONS.items()):
         put(first + n, mav.param_value_encode(f"SERVO{output}_FUNCTION".encode(), function, 9, 10, n))
@@ -151,7 +153,9 @@ def table_from_fields(fields: FlightFields) -> TelemetryTable:
             "esc_temp_c",
         )
     }
-    time_s = fields.stamp_us * 1e-6
+    time_s = (
+        fields.stamp_us - (int(fields.stamp_us[0]) - FIRST_RECORD_LEAD_US)
+    ) / 1e6  # from the first record
     for output in range(1, 9):
         motor = mavlink_esc.motor_for_output(output, params)
         if motor is None:

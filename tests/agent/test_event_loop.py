@@ -6,9 +6,9 @@ import asyncio
 import socket
 import time
 
-from peer import VehiclePeer
+from agent_parts import free_port
+from vehicle_peer import VehiclePeer
 
-from conftest import free_port
 from mav_motor_health.agent import Agent, load_agent_config
 
 

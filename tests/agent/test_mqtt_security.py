@@ -13,9 +13,9 @@ from pathlib import Path
 
 import paho.mqtt.client as paho
 import pytest
-from peer import VehiclePeer
+from agent_parts import MOSQUITTO, free_port, wait_for
+from vehicle_peer import VehiclePeer
 
-from conftest import MOSQUITTO, free_port, wait_for
 from mav_motor_health.agent import Agent, load_agent_config
 
 

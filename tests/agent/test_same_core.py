@@ -72,3 +72,20 @@ def test_streamed_log_announces_what_batch_diagnosis_announces(flight, paper_mot
     # the flight holds faults the agent must have announced: the test is not vacuous
     states = {s for _, _, s in published}
     assert {MotorState.F3_1, MotorState.F2_1, MotorState.F1_1} <= states
+
+
+def test_the_replay_reader_and_the_agent_see_the_same_samples(flight):
+    """The project's .tlog reader (replay) and the agent's live path extract the same samples from a log:
+    times, motors (SERVOn_FUNCTION mapping), speeds, ESC currents, commands and bus voltages."""
+    from mav_motor_health.telemetry import sources
+
+    _, path = flight
+    table = sources.read(path)
+    rows, _ = stream_through_agent(path, "flight")
+    assert len(rows) == len(table)
+    for motor in range(1, 7):
+        live = [r for r in rows if r["motor"] == motor]
+        ref = table.for_motor(motor)
+        for name in ("time_s", "omega_rad_s", "esc_current_a", "throttle", "bus_voltage_v"):
+            np.testing.assert_array_equal([r[name] for r in live], ref[name], err_msg=f"motor {motor} {name}")
+        np.testing.assert_allclose([r["voltage_v"] for r in live], ref.voltage_v(), rtol=1e-12)

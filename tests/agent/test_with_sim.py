@@ -14,8 +14,8 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
+from agent_parts import MqttListener, free_port
 
-from conftest import MqttListener, free_port
 from mav_motor_health.agent import Agent, load_agent_config
 from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.sim.live import SimVehicle
@@ -285,3 +285,59 @@ def test_sim_behind_mavproxy_as_router(broker, mavproxy_router):
         asyncio.run(main())
     finally:
         listener.close()
+
+
+def test_sim_over_tcp_reconnects_after_the_vehicle_restarts(agent_port):
+    """TCP link (the agent a client of the vehicle's TCP server): the vehicle goes away and comes back."""
+    port = free_port()
+
+    async def main() -> None:
+        cfg = load_agent_config(None, connect=f"tcp:127.0.0.1:{port}").with_overrides(heartbeat_timeout_s=1.5)
+        async with Agent(cfg) as agent:
+            agent.link.reconnect_s = 0.2
+            scenario = load_scenario("flight/healthy_calm")
+            with SimVehicle(scenario, f"tcpin:127.0.0.1:{port}"):
+                await until(lambda: agent.monitor.samples > 100, 20, "samples over TCP")
+            await until(lambda: not agent.tracker.up, 10, "autopilot lost when the vehicle stops")
+            before = agent.monitor.samples
+            with SimVehicle(scenario, f"tcpin:127.0.0.1:{port}"):
+                await until(
+                    lambda: agent.monitor.samples > before + 100, 20, "samples again after reconnecting"
+                )
+            assert agent.tracker.losses >= 1
+
+    asyncio.run(main())
+
+
+def test_cli_demo_runs_the_agent_on_the_simulated_hexacopter(tmp_path):
+    """The README's main command, shortened: ``agent --sim --fault F2.1@2:2 --duration 8``."""
+    import os
+    import subprocess
+    import sys
+
+    from agent_parts import REPO
+
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mav_motor_health",
+            "agent",
+            "--sim",
+            "--fault",
+            "F2.1@2:2",
+            "--duration",
+            "8",
+            "--no-tui",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env={**os.environ, "PYTHONPATH": str(REPO / "src")},
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.splitlines()
+    assert sum("NO_DATA -> NORMAL" in line for line in lines) == 6
+    assert any("motor 2:" in line and "-> F2.1 (phase open)" in line for line in lines), proc.stdout
+    assert "agent stopped" in proc.stderr

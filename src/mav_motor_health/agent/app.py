@@ -433,8 +433,14 @@ def _iso(epoch_s: float) -> str:
     )
 
 
-async def run_agent(config: AgentConfig, *, tui: bool | None = None, stream: TextIO | None = None) -> int:
-    """Run until SIGTERM/SIGINT (or a .tlog's end); returns the exit code."""
+async def run_agent(
+    config: AgentConfig,
+    *,
+    tui: bool | None = None,
+    stream: TextIO | None = None,
+    duration_s: float | None = None,
+) -> int:
+    """Run until SIGTERM/SIGINT, a .tlog's end or ``duration_s`` seconds; returns the exit code."""
     from .view import StateView
 
     out = stream or sys.stdout
@@ -448,7 +454,7 @@ async def run_agent(config: AgentConfig, *, tui: bool | None = None, stream: Tex
     async with Agent(config, view=view) as agent:
         stopper = asyncio.ensure_future(stop.wait())
         finished = asyncio.ensure_future(agent.wait())
-        await asyncio.wait({stopper, finished}, return_when=asyncio.FIRST_COMPLETED)
+        await asyncio.wait({stopper, finished}, timeout=duration_s, return_when=asyncio.FIRST_COMPLETED)
         for fut in (stopper, finished):
             fut.cancel()
         if stop.is_set():

@@ -57,6 +57,7 @@ async def run_with_sim(
     scenario: str = "flight/healthy_calm",
     fault: FaultPlan | None = None,
     tui: bool | None = None,
+    duration_s: float | None = None,
 ) -> int:
     """Start the simulated hexacopter on a loopback port, then the agent on it, until SIGTERM/Ctrl-C."""
     from ..sim.live import SimVehicle
@@ -78,7 +79,7 @@ async def run_with_sim(
 
     injector = asyncio.ensure_future(inject_later())
     try:
-        return await run_agent(config, tui=tui)
+        return await run_agent(config, tui=tui, duration_s=duration_s)
     finally:
         injector.cancel()
         with contextlib.suppress(asyncio.CancelledError):

@@ -1,16 +1,19 @@
-"""The MAVLink link: pymavlink as a bytes-to-messages parser and encoder, behind threads.
+"""The MAVLink link: pymavlink as a bytes-to-messages parser and encoder; nothing waits on the loop.
 
-:class:`MavlinkLink` is an async context manager that owns two threads: a reader that waits on the
-transport's file descriptor (``select`` with a short timeout), parses bytes into messages and hands them
-to the event loop in batches with ``loop.call_soon_threadsafe`` (at most one wake-up per ``deliver_s``,
-10 ms; every message keeps its own arrival time); and a writer that drains an outgoing queue, so a slow
-serial port or a full TCP buffer never stalls the loop. Transports come from pymavlink's ``mavutil``
-(serial, ``udpin:``, ``udpout:``, ``tcp:``, ``tcpin:``) used for their bytes only; parsing and encoding
-use one MAVLink 2 ``ardupilotmega`` object each. A broken transport is closed and reopened with back-off
-by the reader thread; the loop only sees messages stop and start again.
+:class:`MavlinkLink` is an async context manager. Transports come from pymavlink's ``mavutil`` (serial,
+``udpin:``, ``udpout:``, ``tcp:``, ``tcpin:``), used for their bytes only, and are opened in a worker
+thread (opening a serial port or a TCP connection can take seconds). Then the event loop watches the
+transport's file descriptor (``loop.add_reader``) and, when it is readable, reads what is there without
+waiting and parses it with one MAVLink 2 ``ardupilotmega`` parser; every message keeps its arrival time.
+On an event loop without ``add_reader`` (Windows' proactor) a reader thread waits in ``select`` instead
+and hands batches to the loop with ``loop.call_soon_threadsafe``. Frames to send go through a queue to a
+writer thread, so a slow serial port or a full TCP buffer never stalls the loop. A broken transport (an
+error, a TCP end of file) is closed and reopened with back-off; the loop only sees messages stop and
+start again.
 
-A ``.tlog`` path is a transport too (replay through the live path): its records' own timestamps become
-the messages' times, and the reader waits for the loop instead of dropping messages.
+A ``.tlog`` path is a transport too (replay through the live path): a reader thread hands its records to
+the loop with their own timestamps (seconds from the first record, as the log readers count them),
+waiting for the loop instead of dropping messages.
 
 Connection URLs: ``/dev/serial0:921600`` (device and baud rate), ``udpin:0.0.0.0:14550``,
 ``udpout:127.0.0.1:14550``, ``tcp:127.0.0.1:5760``, ``tcpin:0.0.0.0:5760``, ``flight.tlog``.
@@ -129,15 +132,21 @@ class MavlinkLink:
         self.dropped = 0  #: messages dropped because the loop fell behind (live links)
         self.bad_bytes = 0  #: bytes the parser could not use
         self.opened = threading.Event()
+        self._reader_task: asyncio.Task[None] | None = None
+        self._parser: Any = None
 
     # -- context manager ---------------------------------------------------------------------------
     async def __aenter__(self) -> MavlinkLink:
-        self._loop = asyncio.get_running_loop()
-        target = self._read_tlog if self.url.kind == "tlog" else self._read_live
-        self._threads = [
-            threading.Thread(target=target, name="mavlink-reader", daemon=True),
-            threading.Thread(target=self._write_loop, name="mavlink-writer", daemon=True),
-        ]
+        self._loop = loop = asyncio.get_running_loop()
+        self._threads = [threading.Thread(target=self._write_loop, name="mavlink-writer", daemon=True)]
+        if self.url.kind == "tlog":
+            self._threads.append(threading.Thread(target=self._read_tlog, name="mavlink-reader", daemon=True))
+        elif _loop_can_watch_fds(loop):
+            # sockets and serial ports: the loop watches the descriptor and reads what is there without
+            # waiting (no reader thread, so no GIL hand-over per datagram); opening runs in a worker thread
+            self._reader_task = loop.create_task(self._watch(), name="mavlink-reader")
+        else:  # an event loop without add_reader (Windows' proactor): a reader thread
+            self._threads.append(threading.Thread(target=self._read_live, name="mavlink-reader", daemon=True))
         for thread in self._threads:
             thread.start()
         return self
@@ -147,6 +156,11 @@ class MavlinkLink:
 
     async def aclose(self) -> None:
         self._stop.set()
+        task, self._reader_task = self._reader_task, None
+        if task is not None:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
         with contextlib.suppress(queue.Full):
             self._frames.put_nowait(None)
         loop = asyncio.get_running_loop()
@@ -216,6 +230,56 @@ class MavlinkLink:
         if conn is not None:
             with contextlib.suppress(Exception):
                 conn.close()
+
+    async def _watch(self) -> None:
+        """Keep the transport open and let the loop read it whenever it is readable."""
+        loop = asyncio.get_running_loop()
+        await loop.run_in_executor(None, _register_extra_messages)
+        self._parser = mavlink2.MAVLink(None, 0, 0)
+        self._parser.robust_parsing = True
+        while True:
+            try:
+                conn = await loop.run_in_executor(None, self._open)
+            except Exception as exc:  # any transport failure: retry, the vehicle may come later
+                log.warning(
+                    "MAVLink %s: cannot open (%s); retrying in %.1f s", self.url, exc, self.reconnect_s
+                )
+                await asyncio.sleep(self.reconnect_s)
+                continue
+            with self._conn_lock:
+                self._conn = conn
+                self.opened.set()
+            log.info("MAVLink %s: open", self.url)
+            broken = asyncio.Event()
+            loop.add_reader(conn.fd, self._readable, conn, broken)
+            try:
+                await broken.wait()
+            finally:
+                loop.remove_reader(conn.fd)
+            self._close_conn()
+            await asyncio.sleep(self.reconnect_s)
+
+    def _readable(self, conn: Any, broken: asyncio.Event) -> None:
+        """The descriptor has data: read what is there (never waiting), parse, queue the messages."""
+        batch: list[Received] = []
+        now = self.clock()
+        for _ in range(64):
+            try:
+                data = _raw_recv(conn)
+            except (BlockingIOError, InterruptedError):
+                break
+            except (OSError, ValueError) as exc:
+                log.warning("MAVLink %s: %s; reopening", self.url, exc)
+                broken.set()
+                break
+            if not data:
+                if _is_stream(conn) and not batch:
+                    log.warning("MAVLink %s: peer closed; reconnecting", self.url)
+                    broken.set()
+                break
+            batch.extend(Received(now, msg) for msg in self._parse(self._parser, data))
+        if batch:
+            self._put_live(batch)
 
     def _read_live(self) -> None:
         _register_extra_messages()
@@ -299,6 +363,7 @@ class MavlinkLink:
             return
         self.opened.set()
         pos = 0
+        origin_us: int | None = None
         batch: list[Received] = []
         while pos + 9 <= len(data) and not self._stop.is_set():
             (stamp_us,) = struct.unpack_from(">Q", data, pos)
@@ -313,7 +378,9 @@ class MavlinkLink:
                 continue
             frame = data[pos + 8 : pos + 8 + size]
             pos += 8 + size
-            batch.extend(Received(stamp_us * 1e-6, msg) for msg in self._parse(parser, frame))
+            if origin_us is None:
+                origin_us = stamp_us  # seconds from the first record, as the log readers count them
+            batch.extend(Received((stamp_us - origin_us) / 1e6, msg) for msg in self._parse(parser, frame))
             if len(batch) >= 200:
                 self._deliver(batch, wait=True)
                 batch = []
@@ -334,6 +401,10 @@ class MavlinkLink:
                 _raw_write(conn, frame)
             except (OSError, ValueError) as exc:
                 log.debug("MAVLink %s: write failed: %s", self.url, exc)
+
+
+def _loop_can_watch_fds(loop: asyncio.AbstractEventLoop) -> bool:
+    return hasattr(loop, "add_reader") and not type(loop).__name__.startswith("Proactor")
 
 
 def _is_stream(conn: Any) -> bool:

@@ -116,6 +116,7 @@ class HealthMonitor:
                     "voltage_v": sample.voltage_v,
                     "bus_voltage_v": sample.bus_voltage_v,
                     "throttle": sample.throttle,
+                    "esc_current_a": sample.esc_current_a,
                     **{name: values[k].item() for name, values in cols.items()},
                 }
                 rows.append(row)

@@ -39,6 +39,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--fault", metavar="F@T:M", help="with --sim: inject e.g. F3.1@20:3 (fault at 20 s on motor 3)"
     )
+    p.add_argument(
+        "--duration", type=float, metavar="S", help="stop after S seconds (default: run until SIGTERM)"
+    )
     p.add_argument("--mqtt", metavar="URL", help="broker: mqtt://[user:pass@]host[:port] or mqtts://...")
     p.add_argument("--params", metavar="FILE", help="motor parameters TOML or a name in params/motors")
     p.add_argument("--profile", metavar="P", help="threshold profile: testbed, flight or a TOML file")
@@ -82,5 +85,5 @@ def run(args: argparse.Namespace) -> int:
         logging.getLogger().setLevel(logging.ERROR)  # the table shows the states; log lines would scroll it
     if args.sim:
         fault = parse_fault(args.fault) if args.fault else None
-        return asyncio.run(run_with_sim(config, args.sim, fault, tui=args.tui))
-    return asyncio.run(run_agent(config, tui=args.tui))
+        return asyncio.run(run_with_sim(config, args.sim, fault, tui=args.tui, duration_s=args.duration))
+    return asyncio.run(run_agent(config, tui=args.tui, duration_s=args.duration))

@@ -320,8 +320,9 @@ class MqttPublisher:
                         delay,
                     )
             finally:
-                self._client = None
+                client_gone, self._client = self._client, None
                 self.connected.clear()
+                _consume_disconnect_error(client_gone)
             await asyncio.sleep(delay)
             delay = min(delay * 2, self.settings.reconnect_max_s)
 
@@ -341,3 +342,10 @@ class MqttPublisher:
             )
             self.outbox.done(message)
             self.published += 1
+
+
+def _consume_disconnect_error(client: aiomqtt.Client | None) -> None:
+    """aiomqtt leaves an unexpected disconnection's error in a future nobody reads; we have handled it."""
+    future = getattr(client, "_disconnected", None)
+    if future is not None and future.done() and not future.cancelled():
+        future.exception()

@@ -11,10 +11,12 @@ never generated code that could drift from it. :func:`register` teaches a pymavl
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import functools
 import importlib.util
 import io
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -34,6 +36,7 @@ def load() -> ModuleType:
     from pymavlink.generator import mavgen, mavparse
 
     folder = Path(tempfile.mkdtemp(prefix="mav_motor_health_dialect_"))
+    atexit.register(shutil.rmtree, folder, True)  # the module stays imported; the files are not needed
     out = folder / "mav_motor_health_dialect.py"
     opts = mavgen.Opts(str(out), wire_protocol=mavparse.PROTOCOL_2_0, language="Python3", validate=False)
     with contextlib.redirect_stdout(io.StringIO()):  # mavgen prints its progress
