@@ -76,7 +76,7 @@ def test_streamed_log_announces_what_batch_diagnosis_announces(flight, paper_mot
 
 def test_the_replay_reader_and_the_agent_see_the_same_samples(flight):
     """The project's .tlog reader (replay) and the agent's live path extract the same samples from a log:
-    times, motors (SERVOn_FUNCTION mapping), speeds, ESC currents, commands and bus voltages."""
+    times, motors (SERVOn_FUNCTION mapping), speeds, ESC and motor currents, commands and bus voltages."""
     from mav_motor_health.telemetry import sources
 
     _, path = flight
@@ -89,3 +89,7 @@ def test_the_replay_reader_and_the_agent_see_the_same_samples(flight):
         for name in ("time_s", "omega_rad_s", "esc_current_a", "throttle", "bus_voltage_v"):
             np.testing.assert_array_equal([r[name] for r in live], ref[name], err_msg=f"motor {motor} {name}")
         np.testing.assert_allclose([r["voltage_v"] for r in live], ref.voltage_v(), rtol=1e-12)
+        # the motor current too: both derive it with mavlink_esc.motor_inputs (ESC current / throttle)
+        np.testing.assert_allclose(
+            [r["current_a"] for r in live], ref["current_a"], rtol=1e-12, equal_nan=True
+        )
