@@ -195,8 +195,10 @@ def tune_profile(
         # trusted current never show)
         hold_by_label = dict(base.persistence.announce_s)
         for code, dur in longest.items():
-            label = MotorState(code).label
-            hold_by_label[label] = max(hold_by_label.get(label, 0.0), round(max(min_hold_s, margin * dur), 3))
+            state_label = MotorState(code).label
+            hold_by_label[state_label] = max(
+                hold_by_label.get(state_label, 0.0), round(max(min_hold_s, margin * dur), 3)
+            )
         holds = tuple(sorted(hold_by_label.items()))
         profile = replace(
             profile,
