@@ -11,7 +11,11 @@ from mav_motor_health.diagnosis.profile import ThresholdProfile
 from mav_motor_health.model.params import MotorParams
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED_LOGS = REPO.parent / "shared" / "real_logs"
+#: ``shared/real_logs`` beside the clone (CI), or beside any folder above it (a git worktree)
+SHARED_LOGS = next(
+    (p / "shared" / "real_logs" for p in REPO.parents if (p / "shared" / "real_logs").is_dir()),
+    REPO.parent / "shared" / "real_logs",
+)
 
 
 @pytest.fixture(scope="session")

@@ -3,6 +3,7 @@ and imported by the tests; a module name of its own, so no other test folder's c
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import json
 import os
@@ -211,3 +212,15 @@ class MavproxyRouter:
             self.proc.kill()
             self.proc.wait(5)
         self.log.close()
+
+
+async def until(
+    predicate: Callable[[], Any], timeout_s: float, what: str, show: Callable[[], Any] | None = None
+) -> Any:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        await asyncio.sleep(0.02)
+    pytest.fail(f"timed out after {timeout_s} s waiting for {what}" + (f": {show()}" if show else ""))

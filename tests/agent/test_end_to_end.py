@@ -9,30 +9,15 @@ import os
 import signal
 import subprocess
 import sys
-import time
-from collections.abc import Callable
 from typing import Any
 
-import pytest
-from agent_parts import REPO, MqttListener, wait_for
+from agent_parts import REPO, MqttListener, until, wait_for
 from vehicle_peer import VehiclePeer
 
 from mav_motor_health.agent import Agent, load_agent_config
 from mav_motor_health.diagnosis.states import MotorState
 
 VEHICLE = "hexa-test"
-
-
-async def until(
-    predicate: Callable[[], Any], timeout_s: float, what: str, show: Callable[[], Any] | None = None
-) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        await asyncio.sleep(0.02)
-    pytest.fail(f"timed out after {timeout_s} s waiting for {what}" + (f": {show()}" if show else ""))
 
 
 def agent_config(peer: VehiclePeer, broker_port: int, **kw: Any):

@@ -10,11 +10,9 @@ import select
 import socket
 import threading
 import time
-from collections.abc import Callable
-from typing import Any
 
 import pytest
-from agent_parts import MqttListener, free_port
+from agent_parts import MqttListener, free_port, until
 
 from mav_motor_health.agent import Agent, load_agent_config
 from mav_motor_health.diagnosis.states import MotorState
@@ -63,18 +61,6 @@ class UdpRelay:
         self._stop.set()
         self._thread.join(2)
         self.sock.close()
-
-
-async def until(
-    predicate: Callable[[], Any], timeout_s: float, what: str, show: Callable[[], Any] | None = None
-) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        await asyncio.sleep(0.02)
-    pytest.fail(f"timed out after {timeout_s} s waiting for {what}" + (f": {show()}" if show else ""))
 
 
 def states(listener: MqttListener) -> dict[int, str]:

@@ -115,7 +115,7 @@ def broker(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Broker]:
     stop(proc)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")  # a live sync Playwright holds an event loop: end it with the module
 def browser() -> Iterator[Any]:
     from playwright.sync_api import sync_playwright
 
@@ -412,17 +412,6 @@ def display_for() -> Iterator[Callable[..., DisplayServer]]:
     yield make
     for s in servers:
         s.__exit__(None, None, None)
-
-
-@pytest.fixture(scope="session")
-def real_logs() -> Path:
-    """``shared/real_logs`` beside the clone (CI), or beside any folder above it (a git worktree)."""
-    here = Path(__file__).resolve()
-    for parent in here.parents:
-        candidate = parent / "shared" / "real_logs"
-        if candidate.is_dir():
-            return candidate
-    pytest.fail(f"the shared real logs are missing: expected shared/real_logs beside a folder above {here}")
 
 
 @pytest.fixture(name="free_port")

@@ -6,18 +6,6 @@ from pathlib import Path
 
 import pytest
 
-HERE = Path(__file__).resolve()
-
-
-@pytest.fixture(scope="session")
-def real_logs() -> Path:
-    """``shared/real_logs`` beside the clone (CI), or beside any folder above it (a git worktree)."""
-    for parent in HERE.parents:
-        candidate = parent / "shared" / "real_logs"
-        if candidate.is_dir():
-            return candidate
-    pytest.fail(f"the shared real logs are missing: expected shared/real_logs beside a folder above {HERE}")
-
 
 @pytest.fixture(scope="session")
 def sitl_tlog(real_logs: Path) -> Path:

@@ -52,6 +52,20 @@ class EscSamples:
     esc_temp_c: NDArray[np.float64] | None = None
     motor_temp_c: NDArray[np.float64] | None = None
 
+    @classmethod
+    def concat(cls, parts: list[EscSamples]) -> EscSamples:
+        """One table of several message groups' samples (a part without temperatures gets NaN)."""
+        return cls(
+            np.concatenate([p.time_s for p in parts]),
+            np.concatenate([p.slot for p in parts]),
+            np.concatenate([p.omega_rad_s for p in parts]),
+            np.concatenate([p.current_a for p in parts]),
+            np.concatenate([p.bus_voltage_v for p in parts]),
+            np.concatenate(
+                [p.esc_temp_c if p.esc_temp_c is not None else np.full(len(p.time_s), np.nan) for p in parts]
+            ),
+        )
+
 
 def _sorted_series(series: Series) -> Series:
     t, v = np.asarray(series[0], dtype=float), np.asarray(series[1], dtype=float)

@@ -338,16 +338,7 @@ def read_tlog(path: str | Path) -> TelemetryTable:
                     rec["voltage"][:, j].astype(float),
                 )
             )
-    esc = EscSamples(
-        np.concatenate([p.time_s for p in parts]),
-        np.concatenate([p.slot for p in parts]),
-        np.concatenate([p.omega_rad_s for p in parts]),
-        np.concatenate([p.current_a for p in parts]),
-        np.concatenate([p.bus_voltage_v for p in parts]),
-        np.concatenate(
-            [p.esc_temp_c if p.esc_temp_c is not None else np.full(len(p.time_s), np.nan) for p in parts]
-        ),
-    )
+    esc = EscSamples.concat(parts)
     slots = sorted(set(esc.slot.tolist()))
     motor_of_slot = {s: mavlink_esc.motor_for_output(s + 1, params) for s in slots}
 

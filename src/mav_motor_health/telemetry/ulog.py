@@ -321,16 +321,7 @@ def read_ulog(path: str | Path) -> TelemetryTable:
         )
         function = int(rep["actuator_function"][-1]) if "actuator_function" in report_fields else 0
         motor_of_slot[j] = mavlink_esc.motor_for_px4_function(function, j)
-    esc = EscSamples(
-        np.concatenate([p.time_s for p in parts]),
-        np.concatenate([p.slot for p in parts]),
-        np.concatenate([p.omega_rad_s for p in parts]),
-        np.concatenate([p.current_a for p in parts]),
-        np.concatenate([p.bus_voltage_v for p in parts]),
-        np.concatenate(
-            [p.esc_temp_c if p.esc_temp_c is not None else np.full(len(p.time_s), np.nan) for p in parts]
-        ),
-    )
+    esc = EscSamples.concat(parts)
     commands: dict[int, Series] = {}
     throttle_source = "none"
     motors_topic = log.get("actuator_motors")
