@@ -6,7 +6,8 @@ telemetry is late and quantised) and the stall currents depend on the battery. `
 those numbers off labelled flights instead:
 
 1. **Bands.** On healthy samples (motors without a fault, and the faulty motor before onset) that the
-   steady rule accepts and whose current is trusted, the residuals against the model are collected.
+   steady rule accepts and whose current is trusted, the residuals against the model are collected, as
+   the tree judges them (after the flight rule's residual low-pass).
    The speed band is ``margin ×`` the ``quantile`` of |ω − ω_model|; the current band is the same per bin
    of input voltage, made non-decreasing in voltage, with the bins' centres as anchors.
 2. **Stall split.** The F2.1 and F4.2 currents after onset, below the stop speed, give one split per
