@@ -114,6 +114,37 @@ class MqttListener:
         self.client.disconnect()
 
 
+def start_mavproxy(workdir: Path, master_port: int, out_port: int, log: Any) -> subprocess.Popen:
+    """MAVProxy (MAVLink 2) with its master on a UDP port we send to and one --out UDP port."""
+    return subprocess.Popen(
+        [
+            sys.executable,
+            MAVPROXY,
+            f"--master=udpin:127.0.0.1:{master_port}",
+            f"--out=udp:127.0.0.1:{out_port}",
+            "--daemon",
+            "--non-interactive",
+            "--nowait",
+            f"--state-basedir={workdir}",
+        ],
+        cwd=workdir,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        stdin=subprocess.DEVNULL,
+        env={**os.environ, "MAVLINK20": "1"},
+    )
+
+
+def stop_process(proc: subprocess.Popen) -> None:
+    """SIGTERM, then SIGKILL if it has not ended within 10 s."""
+    proc.send_signal(signal.SIGTERM)
+    try:
+        proc.wait(10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(5)
+
+
 class MavproxyGcs:
     """MAVProxy as the ground station: master on a UDP port the vehicle sends to, out to our socket."""
 
@@ -124,23 +155,7 @@ class MavproxyGcs:
         self.out.settimeout(0.1)
         out_port = self.out.getsockname()[1]
         self.log = (workdir / "mavproxy.log").open("wb")
-        self.proc = subprocess.Popen(
-            [
-                sys.executable,
-                MAVPROXY,
-                f"--master=udpin:127.0.0.1:{self.master_port}",
-                f"--out=udp:127.0.0.1:{out_port}",
-                "--daemon",
-                "--non-interactive",
-                "--nowait",
-                f"--state-basedir={workdir}",
-            ],
-            cwd=workdir,
-            stdout=self.log,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            env={**os.environ, "MAVLINK20": "1"},
-        )
+        self.proc = start_mavproxy(workdir, self.master_port, out_port, self.log)
         from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
         self.parser = mavlink2.MAVLink(None, 0, 0)
@@ -168,12 +183,7 @@ class MavproxyGcs:
 
     def close(self) -> None:
         self._stop.set()
-        self.proc.send_signal(signal.SIGTERM)
-        try:
-            self.proc.wait(10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait(5)
+        stop_process(self.proc)
         self._thread.join(2)
         self.out.close()
         self.log.close()
@@ -186,31 +196,10 @@ class MavproxyRouter:
         self.master_port = free_port(socket.SOCK_DGRAM)
         self.out_port = free_port(socket.SOCK_DGRAM)
         self.log = (workdir / "mavproxy-router.log").open("wb")
-        self.proc = subprocess.Popen(
-            [
-                sys.executable,
-                MAVPROXY,
-                f"--master=udpin:127.0.0.1:{self.master_port}",
-                f"--out=udp:127.0.0.1:{self.out_port}",
-                "--daemon",
-                "--non-interactive",
-                "--nowait",
-                f"--state-basedir={workdir}",
-            ],
-            cwd=workdir,
-            stdout=self.log,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            env={**os.environ, "MAVLINK20": "1"},
-        )
+        self.proc = start_mavproxy(workdir, self.master_port, self.out_port, self.log)
 
     def close(self) -> None:
-        self.proc.send_signal(signal.SIGTERM)
-        try:
-            self.proc.wait(10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait(5)
+        stop_process(self.proc)
         self.log.close()
 
 
