@@ -77,10 +77,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--hours", type=float, default=0.25, help="healthy flight per turbulence level [h]")
     parser.add_argument("--jobs", type=int, default=None)
+    parser.add_argument("--profile", default="flight", help="profile TOML or name (default: flight)")
     args = parser.parse_args()
     started = time.perf_counter()
     params = load_motor_params()
-    profile = load_profile("flight")
+    profile = load_profile(args.profile)
 
     # 1. faults at three turbulence levels (test seeds)
     cases = []
@@ -98,7 +99,7 @@ def main() -> int:
                     )
                 )
     flights = run_flights(cases, args.jobs)
-    print("1. Faults in flight (test seeds; profile flight.toml)")
+    print(f"1. Faults in flight (test seeds; profile {args.profile})")
     print(f"{'turbulence':10s} {'fault':5s} {'accuracy':>9s} {'detect s':>9s} {'NORMAL':>8s} {'false':>5s}")
     detections = []
     for turbulence in TURBULENCE_LEVELS:

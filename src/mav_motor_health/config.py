@@ -243,12 +243,19 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             stall_split_ref_v=p.number("stall_split_ref_v", 11.1, minimum=0.0, unit="V"),
             speed_only_band_frac=p.number("speed_only_band_frac", 0.15, minimum=0.0, maximum=1.0),
             min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
+            speed_band_per_activity=p.number("speed_band_per_activity", 0.0, minimum=0.0, unit="rad/s per V"),
+            current_band_per_activity=p.number("current_band_per_activity", 0.0, minimum=0.0, unit="A per V"),
             steady=SteadyRule(
                 step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
                 settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
                 kind=steady.text("kind", "step"),
                 lag_fraction=steady.number("lag_fraction", 0.5, minimum=0.0),
                 residual_tau_s=steady.number("residual_tau_s", 0.0, minimum=0.0, maximum=5.0, unit="s"),
+                activity_tau_s=steady.number("activity_tau_s", 0.5, minimum=0.0, maximum=60.0, unit="s"),
+                activity_ref_v=steady.number("activity_ref_v", 0.0, minimum=0.0, unit="V"),
+                residual_tau_max_s=steady.number(
+                    "residual_tau_max_s", 2.0, minimum=0.0, maximum=10.0, unit="s"
+                ),
             ),
             plausibility=PlausibilityRule(
                 **{
@@ -293,6 +300,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"stall_split_ref_v = {profile.stall_split_ref_v!r}",
         f"speed_only_band_frac = {profile.speed_only_band_frac!r}",
         f"min_command = {profile.min_command!r}",
+        f"speed_band_per_activity = {profile.speed_band_per_activity!r}",
+        f"current_band_per_activity = {profile.current_band_per_activity!r}",
         "",
         "[steady]",
         f"kind = {_toml_string(profile.steady.kind)}",
@@ -300,6 +309,9 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"settle_s = {profile.steady.settle_s!r}",
         f"lag_fraction = {profile.steady.lag_fraction!r}",
         f"residual_tau_s = {profile.steady.residual_tau_s!r}",
+        f"activity_tau_s = {profile.steady.activity_tau_s!r}",
+        f"activity_ref_v = {profile.steady.activity_ref_v!r}",
+        f"residual_tau_max_s = {profile.steady.residual_tau_max_s!r}",
         "",
         "[persistence]",
         f"default_announce_s = {profile.persistence.default_announce_s!r}",

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from ..model.balance import BalanceCarry, balance_deviations
 from ..model.dynamics import ResponseCarry, first_order_response, time_constant_s
 from ..model.equations import current_from_speed, steady_state
 from ..model.params import MotorParams
@@ -28,7 +29,7 @@ from .plausibility import (
 )
 from .profile import ThresholdProfile
 from .states import MotorState
-from .steady import SteadyCarry, steady_mask
+from .steady import SteadyCarry, steady_mask, warm_mask
 from .tree import classify
 
 __all__ = ["DIAGNOSIS_COLUMNS", "MotorCarry", "StreamingDiagnoser", "diagnose", "diagnose_motor"]
@@ -63,6 +64,7 @@ class MotorCarry:
     current_residual: ResponseCarry = field(default_factory=ResponseCarry)
     plausibility: PlausibilityCarry = field(default_factory=PlausibilityCarry)
     persistence: PersistenceCarry = field(default_factory=PersistenceCarry)
+    balance: BalanceCarry = field(default_factory=BalanceCarry)
 
 
 def diagnose_motor(
@@ -91,49 +93,77 @@ def diagnose_motor(
     carry = carry or MotorCarry()
     t = np.asarray(time_s, dtype=float)
     v = np.asarray(voltage_v, dtype=float)
-    model = predict_steady(params, v, context) if params.effects else steady_state(params, v)
     rule = profile.steady
-    if rule.kind == "dynamic" and params.J_kg_m2 is not None:
-        tau = time_constant_s(params, model.omega_rad_s)
-        omega_pred, response_carry = first_order_response(t, model.omega_rad_s, tau, carry.response)
-        turning = omega_pred > 0
-        # Current from the torque balance (eq. 7 plus the inertia's share, J·dω/dt with dω/dt of the
-        # first-order response), not from eq. 2: eq. 2 would turn every sampled command jitter into
-        # current jitter divided by R (6 A per volt on the paper's motor).
-        accel = (model.omega_rad_s - omega_pred) / tau
-        inertia = params.J_kg_m2 or 0.0
-        current_pred = np.where(
-            turning, current_from_speed(params, omega_pred) + inertia * accel / params.k_t, model.current_a
+    balance_carry = carry.balance
+    activity: NDArray[np.float64] | None = None
+    judged_v = v
+    if rule.kind == "balance":
+        omega_in = np.asarray(omega_rad_s, dtype=float)
+        bal, balance_carry = balance_deviations(
+            params,
+            t,
+            v,
+            omega_in,
+            np.asarray(current_a, dtype=float),
+            rule.residual_tau_s,
+            rule.activity_tau_s,
+            carry.balance,
+            activity_ref_v=rule.activity_ref_v,
+            tau_max_s=rule.residual_tau_max_s,
         )
-        lag = rule.lag_fraction
-        # The input is known only at the samples: a sample is quasi-steady where the response has caught
-        # up with the steady state and the input has not stepped since the last samples (a command that
-        # jumps between samples hides what the motor saw in between).
-        held, steady_carry = steady_mask(rule, t, v, carry.steady)
-        steady = (
-            held
-            & (np.abs(omega_pred - model.omega_rad_s) <= lag * profile.speed_band_rad_s)
-            & (np.abs(current_pred - model.current_a) <= lag * profile.current_halfwidth_a(v))
+        activity, judged_v = bal.activity_v, bal.voltage_v
+        omega_pred, current_pred = bal.omega_model_rad_s, bal.current_model_a
+        # A stalled motor: the speed itself (the lower of the sample and its low-pass, so that a
+        # start-up kick does not break the run and the first slow sample counts), and the mean current.
+        slow = np.fmin(omega_in, bal.omega_mean_rad_s)
+        stalled_like = slow < profile.stop_speed_rad_s
+        omega_seen = np.where(stalled_like, slow, omega_pred + bal.delta_omega_rad_s)
+        omega_seen = np.where(np.isfinite(omega_in), omega_seen, np.nan)
+        current_seen = np.where(stalled_like, bal.current_mean_a, current_pred + bal.delta_current_a)
+        current_seen = np.where(np.isfinite(np.asarray(current_a, dtype=float)), current_seen, np.nan)
+        # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air
+        # is no step at all) puts two operating points into the low-passes: judge after settle_s.
+        step_v = rule.step_v + 3.0 * np.nan_to_num(activity)
+        warm, steady_carry = warm_mask(
+            t, v, rule.settle_s, profile.persistence.max_gap_s, step_v, carry.steady
         )
-    else:
-        omega_pred, current_pred = model.omega_rad_s, model.current_a
-        steady, steady_carry = steady_mask(rule, t, v, carry.steady)
+        steady = warm & np.isfinite(v) & np.isfinite(omega_in)
         response_carry = carry.response
-    speed_carry, current_carry = carry.speed_residual, carry.current_residual
-    omega_seen = np.asarray(omega_rad_s, dtype=float)
-    current_seen = np.asarray(current_a, dtype=float)
-    if rule.residual_tau_s > 0:
-        # Commands are sampled, the motor sees every control cycle in between: the residual carries the
-        # aliased control noise. Low-passing the residual (not the measurement) keeps a fault's lasting
-        # offset and averages that noise, as the paper's moving average did for the current.
-        speed_res, speed_carry = first_order_response(
-            t, omega_seen - omega_pred, rule.residual_tau_s, speed_carry
+        speed_carry, current_carry = carry.speed_residual, carry.current_residual
+        omega_expected = omega_pred
+    else:
+        model = predict_steady(params, v, context) if params.effects else steady_state(params, v)
+        if rule.kind == "dynamic" and params.J_kg_m2 is not None:
+            tau = time_constant_s(params, model.omega_rad_s)
+            omega_pred, response_carry = first_order_response(t, model.omega_rad_s, tau, carry.response)
+            turning = omega_pred > 0
+            # Current from the torque balance (eq. 7 plus the inertia's share, J·dω/dt with dω/dt of the
+            # first-order response), not from eq. 2: eq. 2 would turn every sampled command jitter into
+            # current jitter divided by R (6 A per volt on the paper's motor).
+            accel = (model.omega_rad_s - omega_pred) / tau
+            current_pred = np.where(
+                turning,
+                current_from_speed(params, omega_pred) + params.J_kg_m2 * accel / params.k_t,
+                model.current_a,
+            )
+            lag = rule.lag_fraction
+            # The input is known only at the samples: a sample is quasi-steady where the response has
+            # caught up with the steady state and the input has not stepped since the last samples (a
+            # command that jumps between samples hides what the motor saw in between).
+            held, steady_carry = steady_mask(rule, t, v, carry.steady)
+            steady = (
+                held
+                & (np.abs(omega_pred - model.omega_rad_s) <= lag * profile.speed_band_rad_s)
+                & (np.abs(current_pred - model.current_a) <= lag * profile.current_halfwidth_a(v))
+            )
+        else:
+            omega_pred, current_pred = model.omega_rad_s, model.current_a
+            steady, steady_carry = steady_mask(rule, t, v, carry.steady)
+            response_carry = carry.response
+        omega_seen, current_seen, speed_carry, current_carry = _lowpass_residuals(
+            rule.residual_tau_s, t, omega_rad_s, current_a, omega_pred, current_pred, carry
         )
-        current_res, current_carry = first_order_response(
-            t, current_seen - current_pred, rule.residual_tau_s, current_carry
-        )
-        omega_seen = np.where(np.isfinite(omega_seen), omega_pred + speed_res, np.nan)
-        current_seen = np.where(np.isfinite(current_seen), current_pred + current_res, np.nan)
+        omega_expected = np.minimum(omega_pred, model.omega_rad_s)
     reported = current_a if sensor_current_a is None else sensor_current_a
     flags, plausibility_carry = check_motor(
         profile.plausibility, t, command, reported, omega_rad_s, carry.plausibility
@@ -147,10 +177,11 @@ def diagnose_motor(
         omega_model_rad_s=omega_pred,
         current_a=current_seen,
         current_model_a=current_pred,
-        voltage_v=v,
+        voltage_v=judged_v,
         bus_voltage_v=bus_voltage_v,
         current_trusted=current_trusted,
-        omega_expected_rad_s=np.minimum(omega_pred, model.omega_rad_s),
+        omega_expected_rad_s=omega_expected,
+        activity_v=activity,
     )
     state[(flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT  # never a motor fault from a bad sensor
     eligible = (steady | np.isin(state, _TRANSIENT_OK)) & (state != MotorState.NO_DATA)
@@ -168,8 +199,9 @@ def diagnose_motor(
         "sensor_flags": flags,
         "omega_judged_rad_s": omega_seen,
         "current_judged_a": current_seen,
-        "speed_band_rad_s": np.full(t.shape, profile.speed_band_rad_s),
-        "current_band_a": profile.current_halfwidth_a(v),
+        "speed_band_rad_s": np.broadcast_to(profile.speed_band(activity), t.shape).astype(float),
+        "current_band_a": profile.current_halfwidth_a(judged_v, activity),
+        "input_activity_v": np.full(t.shape, np.nan) if activity is None else activity,
     }
     new_carry = MotorCarry(
         steady=steady_carry,
@@ -178,8 +210,36 @@ def diagnose_motor(
         current_residual=current_carry,
         plausibility=plausibility_carry,
         persistence=persistence_carry,
+        balance=balance_carry,
     )
     return columns, new_carry
+
+
+def _lowpass_residuals(
+    tau_s: float,
+    t: NDArray[np.float64],
+    omega_rad_s: NDArray[np.float64],
+    current_a: NDArray[np.float64],
+    omega_pred: NDArray[np.float64],
+    current_pred: NDArray[np.float64],
+    carry: MotorCarry,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], ResponseCarry, ResponseCarry]:
+    """The measurements as the tree judges them for the step and dynamic rules: the prediction plus the
+    low-passed residual (no low-pass with ``tau_s`` = 0)."""
+    speed_carry, current_carry = carry.speed_residual, carry.current_residual
+    omega_seen = np.asarray(omega_rad_s, dtype=float)
+    current_seen = np.asarray(current_a, dtype=float)
+    if tau_s > 0:
+        # Commands are sampled, the motor sees every control cycle in between: the residual carries the
+        # aliased control noise. Low-passing the residual (not the measurement) keeps a fault's lasting
+        # offset and averages that noise, as the paper's moving average did for the current.
+        speed_res, speed_carry = first_order_response(t, omega_seen - omega_pred, tau_s, speed_carry)
+        current_res, current_carry = first_order_response(
+            t, current_seen - current_pred, tau_s, current_carry
+        )
+        omega_seen = np.where(np.isfinite(omega_seen), omega_pred + speed_res, np.nan)
+        current_seen = np.where(np.isfinite(current_seen), current_pred + current_res, np.nan)
+    return omega_seen, current_seen, speed_carry, current_carry
 
 
 def _current_sum_flags(table: TelemetryTable, profile: ThresholdProfile) -> NDArray[np.int16] | None:
@@ -227,6 +287,7 @@ def diagnose(
         "current_judged_a": np.full(n, np.nan),
         "speed_band_rad_s": np.full(n, np.nan),
         "current_band_a": np.full(n, np.nan),
+        "input_activity_v": np.full(n, np.nan),
     }
     motors = ordered["motor"]
 
@@ -273,6 +334,7 @@ def diagnose(
         current_judged_a=out["current_judged_a"],
         speed_band_rad_s=out["speed_band_rad_s"],
         current_band_a=out["current_band_a"],
+        input_activity_v=out["input_activity_v"],
     )
     for name in ordered.names:
         result.setdefault(name, ordered[name])

@@ -19,7 +19,7 @@ from .states import MotorState
 __all__ = ["PersistenceRule", "SteadyRule", "ThresholdProfile"]
 
 
-STEADY_KINDS = ("step", "dynamic")
+STEADY_KINDS = ("step", "dynamic", "balance")
 
 
 @dataclass(frozen=True)
@@ -34,6 +34,15 @@ class SteadyRule:
     first-order response (time constant from J and the model, :mod:`..model.dynamics`), measurements are
     compared with that, and a sample counts as quasi-steady where the response has caught up with the
     steady state to within ``lag_fraction`` of the speed and current bands.
+
+    ``kind = "balance"`` (flight): no steady state is needed. The model's electrical and mechanical
+    equations are checked as balances at every sample, low-passed with ``residual_tau_s``, and turned
+    into the speed and current deviations they imply in steady state (:mod:`..model.balance`); a sample
+    is judged once the low-passes have had ``settle_s`` of samples without a gap longer than
+    ``max_gap_s`` of the persistence rule. ``activity_tau_s`` is the window of the input activity that
+    widens the bands (``speed_band_per_activity``, ``current_band_per_activity``) and, with
+    ``activity_ref_v`` > 0, lengthens the low-pass to ``residual_tau_s·activity/activity_ref_v`` (at most
+    ``residual_tau_max_s``).
     """
 
     step_v: float = 0.2
@@ -41,8 +50,21 @@ class SteadyRule:
     kind: str = "step"
     lag_fraction: float = 0.5
     residual_tau_s: float = 0.0
+    activity_tau_s: float = 0.5
+    activity_ref_v: float = 0.0
+    residual_tau_max_s: float = 2.0
 
     def __post_init__(self) -> None:
+        if self.kind == "balance" and not self.residual_tau_s > 0:
+            raise ConfigError(
+                f"{self.residual_tau_s!r}",
+                key="steady.residual_tau_s",
+                expected='a time constant > 0 s for kind = "balance"',
+            )
+        if not self.activity_tau_s > 0:
+            raise ConfigError(
+                f"{self.activity_tau_s!r}", key="steady.activity_tau_s", expected="a time constant > 0 s"
+            )
         if not (self.step_v > 0 and self.settle_s >= 0):
             raise ConfigError(
                 "step_v must be > 0 and settle_s >= 0", key="steady", expected="step_v > 0 V, settle_s >= 0 s"
@@ -105,6 +127,8 @@ class ThresholdProfile:
     stall_split_ref_v: float = 11.1
     speed_only_band_frac: float = 0.15
     min_command: float = 0.0
+    speed_band_per_activity: float = 0.0
+    current_band_per_activity: float = 0.0
     steady: SteadyRule = field(default_factory=SteadyRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
@@ -119,6 +143,9 @@ class ThresholdProfile:
             raise ConfigError(f"{self.stop_speed_rad_s!r}", key="stop_speed_rad_s", expected=">= 0 rad/s")
         if not self.stall_split_a > 0:
             raise ConfigError(f"{self.stall_split_a!r}", key="stall_split_a", expected="a current > 0 A")
+        for key in ("speed_band_per_activity", "current_band_per_activity"):
+            if not getattr(self, key) >= 0:
+                raise ConfigError(f"{getattr(self, key)!r}", key=key, expected="a slope >= 0 (per volt)")
         band = self.current_band_a
         if len(band) < 1 or any(len(p) != 2 for p in band):
             raise ConfigError(
@@ -132,12 +159,25 @@ class ThresholdProfile:
         if any(not p[1] > 0 for p in band):
             raise ConfigError("half-widths must be > 0 A", key="current_band_a", expected="half-widths > 0 A")
 
-    def current_halfwidth_a(self, voltage_v: ArrayLike) -> NDArray[np.float64]:
-        """Half-width of the current band at each input voltage (linear, held constant outside)."""
+    def current_halfwidth_a(
+        self, voltage_v: ArrayLike, activity_v: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
+        """Half-width of the current band at each input voltage (linear, held constant outside), widened
+        by the input activity when given."""
         v = np.asarray(voltage_v, dtype=float)
         xs = [p[0] for p in self.current_band_a]
         ys = [p[1] for p in self.current_band_a]
-        return np.interp(v, xs, ys)
+        band = np.interp(v, xs, ys)
+        if activity_v is not None and self.current_band_per_activity:
+            band = band + self.current_band_per_activity * np.nan_to_num(np.asarray(activity_v, dtype=float))
+        return band
+
+    def speed_band(self, activity_v: ArrayLike | None = None) -> NDArray[np.float64] | float:
+        """Half-width of the speed band [rad/s], widened by the input activity when given."""
+        if activity_v is None or not self.speed_band_per_activity:
+            return self.speed_band_rad_s
+        a = np.nan_to_num(np.asarray(activity_v, dtype=float))
+        return self.speed_band_rad_s + self.speed_band_per_activity * a
 
     def stall_split(self, bus_voltage_v: ArrayLike | None = None) -> NDArray[np.float64] | float:
         """The F2.1/F4.2 current split [A], scaled with bus voltage when ``stall_split_per_v`` is set."""

@@ -45,16 +45,22 @@ def classify(
     bus_voltage_v: ArrayLike | None = None,
     current_trusted: ArrayLike | None = None,
     omega_expected_rad_s: ArrayLike | None = None,
+    activity_v: ArrayLike | None = None,
 ) -> NDArray[np.int8]:
-    """State code per sample (see :class:`MotorState`); NaN inputs give ``NO_DATA``."""
+    """State code per sample (see :class:`MotorState`); NaN inputs give ``NO_DATA``.
+
+    ``activity_v`` (the input's activity, :func:`~mav_motor_health.model.balance.input_activity`)
+    widens the bands as the profile says; None: the profile's fixed bands.
+    """
     w, w_model, i, i_model, v = np.broadcast_arrays(
         *(
             np.asarray(x, dtype=float)
             for x in (omega_rad_s, omega_model_rad_s, current_a, current_model_a, voltage_v)
         )
     )
-    band_i = profile.current_halfwidth_a(v)
-    band_w = profile.speed_band_rad_s
+    activity = None if activity_v is None else np.broadcast_to(np.asarray(activity_v, dtype=float), w.shape)
+    band_i = profile.current_halfwidth_a(v, activity)
+    band_w = profile.speed_band(activity)
     split = np.broadcast_to(profile.stall_split(bus_voltage_v), w.shape)
 
     speed_low = w < w_model - band_w

@@ -9,7 +9,9 @@ those numbers off labelled flights instead:
    steady rule accepts and whose current is trusted, the residuals against the model are collected, as
    the tree judges them (after the flight rule's residual low-pass).
    The speed band is ``margin ×`` the ``quantile`` of |ω − ω_model|; the current band is the same per bin
-   of input voltage, made non-decreasing in voltage, with the bins' centres as anchors.
+   of input voltage, made non-decreasing in voltage, with the bins' centres as anchors. With the
+   ``balance`` rule the bands widen with the input's activity: a line over bins of activity, through the
+   calmest bin's need, with the smallest slope (per volt of activity) that covers every bin.
 2. **Stall split.** The F2.1 and F4.2 currents after onset, below the stop speed, give one split per
    flight, the midpoint between the two kinds' currents; where the flights cover several bus voltages
    the split is fitted as ``a + b·(V_bus − V_ref)`` (a stalled motor's current scales with the voltage
@@ -75,6 +77,27 @@ def _quantile(x: NDArray[np.float64], q: float) -> float:
     return float(np.quantile(x, q)) if x.size else float("nan")
 
 
+def _activity_line(
+    residual: NDArray[np.float64], activity: NDArray[np.float64], quantile: float, margin: float, bins: int
+) -> tuple[float, float]:
+    """A band ``base + slope·a`` over the input activity ``a``: through the need (margin × quantile of
+    |residual|) of the calmest bin, with the smallest slope ≥ 0 that covers every other bin's need at
+    that bin's median activity."""
+    edges = np.quantile(activity, np.linspace(0, 1, bins + 1))
+    points = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = (activity >= lo) & (activity <= hi)
+        if sel.sum() >= 20:
+            points.append((float(np.median(activity[sel])), margin * _quantile(residual[sel], quantile)))
+    if not points:
+        return margin * _quantile(residual, quantile), 0.0
+    a0, need0 = points[0]
+    slope = max([0.0] + [(need - need0) / (a - a0) for a, need in points[1:] if a > a0])
+    # every bin covered: lift the base where a bin left of the line's anchor needs more
+    base = max(need - slope * a for a, need in points)
+    return max(base, 0.0), slope
+
+
 def _longest_runs(result: TelemetryTable, healthy: NDArray[np.bool_], max_gap_s: float) -> dict[int, float]:
     """Longest duration [s] of each raw state other than NORMAL over eligible healthy samples, per motor run."""
     longest: dict[int, float] = {}
@@ -128,7 +151,7 @@ def tune_profile(
     masks = [fault_masks(r, f.truth) for r, f in zip(results, flights)]
 
     # 1. bands from healthy, steady, trusted samples
-    rw, ri, rv = [], [], []
+    rw, ri, rv, ra = [], [], [], []
     for r, (healthy, _) in zip(results, masks):
         use = healthy & r["steady"] & ((r["sensor_flags"] & CURRENT_UNTRUSTED) == 0)
         use &= r["omega_model_rad_s"] >= base.stop_speed_rad_s
@@ -136,10 +159,21 @@ def tune_profile(
         rw.append(np.abs(r["omega_judged_rad_s"] - r["omega_model_rad_s"])[use])
         ri.append(np.abs(r["current_judged_a"] - r["current_model_a"])[use])
         rv.append(r["voltage_v"][use])
-    res_w, res_i, volts = (np.concatenate(x) for x in (rw, ri, rv))
+        activity = r.get("input_activity_v")
+        ra.append(np.zeros(int(use.sum())) if activity is None else np.nan_to_num(activity[use]))
+    res_w, res_i, volts, acts = (np.concatenate(x) for x in (rw, ri, rv, ra))
     if res_w.size < 50:
         raise ValueError(f"only {res_w.size} healthy steady samples: too few to tune bands")
-    speed_band = margin * _quantile(res_w, quantile)
+    fit_activity = base.steady.kind == "balance" and bool(np.any(acts > 0))
+    speed_per_a = current_per_a = 0.0
+    if fit_activity:
+        # Bands that widen with the input's activity: a line over activity bins (see _activity_line);
+        # the current band's voltage anchors are then read off what the slope leaves.
+        speed_band, speed_per_a = _activity_line(res_w, acts, quantile, margin, 2 * voltage_bins)
+        _, current_per_a = _activity_line(res_i, acts, quantile, margin, 2 * voltage_bins)
+        res_i = np.maximum(res_i - current_per_a * acts, 0.0)
+    else:
+        speed_band = margin * _quantile(res_w, quantile)
     edges = np.quantile(volts, np.linspace(0, 1, voltage_bins + 1))
     anchors: list[tuple[float, float]] = []
     for lo, hi in zip(edges[:-1], edges[1:]):
@@ -183,6 +217,8 @@ def tune_profile(
         stall_split_a=round(split_a, 3),
         stall_split_per_v=round(per_v, 4),
         stall_split_ref_v=round(ref_v, 3),
+        speed_band_per_activity=round(speed_per_a, 3),
+        current_band_per_activity=round(current_per_a, 4),
     )
     # 3. persistence from the longest false runs, then verify (widen the bands if needed)
     rounds = []
@@ -219,6 +255,8 @@ def tune_profile(
             profile,
             speed_band_rad_s=round(profile.speed_band_rad_s * 1.1, 3),
             current_band_a=tuple((v, round(w * 1.1, 4)) for v, w in profile.current_band_a),
+            speed_band_per_activity=round(profile.speed_band_per_activity * 1.1, 3),
+            current_band_per_activity=round(profile.current_band_per_activity * 1.1, 4),
         )
     report = {
         "flights": [f.name or f.table.source for f in flights],

@@ -1,0 +1,181 @@
+"""The model's two equations as balances, averaged over time: a flight rule that needs no steady state.
+
+In flight the input moves faster than the telemetry samples it, so the speed a sampled input *should*
+give (the steady state, or its first-order response) is mostly guesswork. The model's equations, though,
+hold at every instant, and ESC telemetry reports speed, current and (with the command) input voltage of
+the same instant:
+
+* electrical (eq. 1, inductance neglected): ``r_V = V − R·i − k_e·ω``, the voltage the model cannot
+  account for (zero for a healthy motor at every instant, whatever the input does);
+* mechanical (eq. 2 with the inertia): ``r_T = k_t·i − (C_p·ω^k + B·ω + T_f) − J·dω/dt``, the torque it
+  cannot account for.
+
+Both are low-passed with a time constant ``tau_s`` (the current sense and the sampling jitter make single
+samples noisy); the low-passed ``J·dω/dt`` is ``J·(ω − ω̄)/tau_s`` exactly, so the inertia term needs no
+numerical derivative. A fault shows as a lasting offset: extra friction (F1.1) as torque, a trimmed
+propeller (F3.1) as missing torque, an open transistor (F4.1, a higher effective resistance) as voltage.
+
+To keep the paper's tree and its bands, the two offsets are turned into the deviations of speed and
+current they would cause in steady state at the (low-passed) input ``V̄``. Linearising the model there,
+with ``G = k·C_p·ω^(k−1) + B`` and ``D = k_t·k_e + R·G``:
+
+    Δω = −(k_t·r_V + R·r_T) / D          Δi = (k_e·r_T − G·r_V) / D
+
+(Δω does not depend on the measured current at all: a current sensor that is noisy or mis-scaled does
+not move the speed residual.) The tree then judges ``ω_model(V̄) + Δω`` and ``i_model(V̄) + Δi`` against
+``ω_model(V̄)`` and ``i_model(V̄)``: on a testbed at constant input this is the paper's comparison; in
+flight it is the same comparison without needing the input to stand still.
+
+The *input activity* (:func:`input_activity`) measures how much the input zigzags between samples: the
+balances' noise grows with it (a command that moves between samples leaves the sensed current behind),
+so the flight rule averages longer and the flight profile widens its bands with it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .dynamics import ResponseCarry, first_order_response
+from .equations import current_from_speed, steady_state
+from .params import MotorParams
+
+__all__ = ["ActivityCarry", "BalanceCarry", "BalanceResult", "balance_deviations", "input_activity"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ActivityCarry:
+    """The input activity's low-pass and the last input and change seen."""
+
+    response: ResponseCarry = field(default_factory=ResponseCarry)
+    last_v: float = float("nan")
+    last_dv: float = float("nan")
+
+
+@dataclass(frozen=True)
+class BalanceCarry:
+    """Low-pass states carried between calls (one per averaged quantity)."""
+
+    voltage: ResponseCarry = field(default_factory=ResponseCarry)
+    omega: ResponseCarry = field(default_factory=ResponseCarry)
+    current: ResponseCarry = field(default_factory=ResponseCarry)
+    electrical: ResponseCarry = field(default_factory=ResponseCarry)
+    mechanical: ResponseCarry = field(default_factory=ResponseCarry)
+    activity: ActivityCarry = field(default_factory=ActivityCarry)
+
+
+@dataclass(frozen=True)
+class BalanceResult:
+    voltage_v: FloatArray  # low-passed input voltage V̄
+    omega_model_rad_s: FloatArray  # model speed at V̄
+    current_model_a: FloatArray  # model current at V̄
+    delta_omega_rad_s: FloatArray  # steady-state speed deviation the residuals imply
+    delta_current_a: FloatArray  # steady-state current deviation the residuals imply
+    omega_mean_rad_s: FloatArray  # low-passed measured speed
+    current_mean_a: FloatArray  # low-passed measured current
+    activity_v: FloatArray  # RMS of the input around its low-pass
+
+
+def input_activity(
+    time_s: ArrayLike, voltage_v: ArrayLike, tau_s: float, carry: ActivityCarry | None = None
+) -> tuple[FloatArray, ActivityCarry]:
+    """How much the input zigzags between samples [V], per sample.
+
+    ``sqrt(low-pass of max(0, −ΔV_n·ΔV_(n−1)))`` with ΔV the change from one sample to the next: an input
+    that goes up then down (or down then up) between three samples has moved faster than the samples
+    show, and that is what makes the balances noisy. A manoeuvre's step or ramp (successive changes of
+    the same sign) adds nothing.
+    """
+    carry = carry or ActivityCarry()
+    t = np.asarray(time_s, dtype=float)
+    v = np.asarray(voltage_v, dtype=float)
+    if t.size == 0:
+        return np.zeros(0), carry
+    prev_v = np.concatenate([[carry.last_v], v[:-1]])
+    dv = v - prev_v
+    prev_dv = np.concatenate([[carry.last_dv], dv[:-1]])
+    zigzag = np.maximum(0.0, -dv * prev_dv)
+    zigzag = np.where(np.isfinite(zigzag), zigzag, 0.0)
+    mean, response = first_order_response(t, zigzag, tau_s, carry.response)
+    last_v = float(v[-1]) if np.isfinite(v[-1]) else carry.last_v
+    last_dv = float(dv[-1]) if np.isfinite(dv[-1]) else 0.0
+    return np.sqrt(np.maximum(mean, 0.0)), ActivityCarry(response=response, last_v=last_v, last_dv=last_dv)
+
+
+def balance_deviations(
+    params: MotorParams,
+    time_s: ArrayLike,
+    voltage_v: ArrayLike,
+    omega_rad_s: ArrayLike,
+    current_a: ArrayLike,
+    tau_s: float,
+    activity_tau_s: float,
+    carry: BalanceCarry | None = None,
+    *,
+    activity_ref_v: float = 0.0,
+    tau_max_s: float = 2.0,
+) -> tuple[BalanceResult, BalanceCarry]:
+    """Low-passed balances and the steady-state deviations they imply (see the module doc).
+
+    With ``activity_ref_v`` > 0 the low-pass lengthens with the input activity ``a``:
+    ``tau_s·max(1, a/activity_ref_v)``, at most ``tau_max_s`` (a zigzagging input needs more samples
+    for the same certainty).
+
+    NaN speed or current (a lost sample, a missing sensor) hold the low-passes; Δi is NaN where the
+    current is NaN, Δω needs only voltage and speed.
+    """
+    carry = carry or BalanceCarry()
+    t = np.asarray(time_s, dtype=float)
+    v = np.asarray(voltage_v, dtype=float)
+    w = np.asarray(omega_rad_s, dtype=float)
+    i = np.asarray(current_a, dtype=float)
+    p = params
+    activity, c_a = input_activity(t, v, activity_tau_s, carry.activity)
+    tau: FloatArray | float = tau_s
+    if activity_ref_v > 0:
+        tau = np.clip(tau_s * activity / activity_ref_v, tau_s, max(tau_s, tau_max_s))
+    # Δω from the combination k_t·r_V + R·r_T, which has no current in it.
+    speed_balance = p.k_t * (v - p.k_e * w) - p.R_ohm * p.k_t * current_from_speed(p, w)
+    v_mean, c_v = first_order_response(t, v, tau, carry.voltage)
+    w_mean, c_w = first_order_response(t, w, tau, carry.omega)
+    i_mean, c_i = first_order_response(t, i, tau, carry.current)
+    sb_mean, c_e = first_order_response(t, speed_balance, tau, carry.electrical)
+    torque = p.k_t * (i - current_from_speed(p, w))
+    rt_mean, c_m = first_order_response(t, torque, tau, carry.mechanical)
+    inertia = p.J_kg_m2 or 0.0
+    accel_torque = inertia * (w - w_mean) / tau
+    accel_torque = np.where(np.isfinite(accel_torque), accel_torque, 0.0)
+    sb_mean = sb_mean + p.R_ohm * accel_torque
+    rt_mean = rt_mean - accel_torque
+    model = steady_state(p, v_mean)
+    w_m = np.maximum(model.omega_rad_s, 0.0)
+    g = p.k * p.C_p * w_m ** (p.k - 1.0) + p.B
+    d = p.k_t * p.k_e + p.R_ohm * g
+    delta_w = -sb_mean / d
+    # r_V = (speed_balance − R·r_T)/k_t; Δi = (k_e·r_T − G·r_V)/D
+    rv_mean = (sb_mean - p.R_ohm * rt_mean) / p.k_t
+    delta_i = (p.k_e * rt_mean - g * rv_mean) / d
+    delta_i = np.where(np.isfinite(i), delta_i, np.nan)
+    result = BalanceResult(
+        voltage_v=v_mean,
+        omega_model_rad_s=model.omega_rad_s,
+        current_model_a=model.current_a,
+        delta_omega_rad_s=delta_w,
+        delta_current_a=delta_i,
+        omega_mean_rad_s=w_mean,
+        current_mean_a=i_mean,
+        activity_v=activity,
+    )
+    new = BalanceCarry(
+        voltage=c_v,
+        omega=c_w,
+        current=c_i,
+        electrical=c_e,
+        mechanical=c_m,
+        activity=c_a,
+    )
+    return result, new

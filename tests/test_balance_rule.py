@@ -1,0 +1,160 @@
+"""The balance rule (model/balance.py, steady kind "balance"): the model's equations checked at every
+sample, low-passed, turned into the steady-state deviations the tree judges."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mav_motor_health.config import dump_profile, load_motor_params, load_profile
+from mav_motor_health.diagnosis.pipeline import StreamingDiagnoser, diagnose
+from mav_motor_health.diagnosis.states import MotorState
+from mav_motor_health.diagnosis.steady import warm_mask
+from mav_motor_health.diagnosis.tuning import _activity_line
+from mav_motor_health.evaluation.campaign import FlightCase, run_flights
+from mav_motor_health.model.balance import balance_deviations, input_activity
+from mav_motor_health.model.equations import steady_state
+
+
+@pytest.fixture(scope="module")
+def motor():
+    return load_motor_params("paper_x2212")
+
+
+@pytest.fixture(scope="module")
+def flights():
+    """One healthy calm flight and the three faults whose signature is a deviation, motor 2 at 12 s."""
+    cases = [
+        FlightCase("calm", 5100, 24.0),
+        FlightCase("calm", 5101, 24.0, fault="F1.1", motor=2, onset_s=12.0),
+        FlightCase("calm", 5102, 24.0, fault="F3.1", motor=2, onset_s=12.0),
+        FlightCase("calm", 5103, 24.0, fault="F4.1", motor=2, onset_s=12.0),
+    ]
+    return dict(zip(("healthy", "F1.1", "F3.1", "F4.1"), run_flights(cases, jobs=2)))
+
+
+def test_steady_state_of_the_model_has_no_deviation(motor) -> None:
+    t = np.arange(200) * 0.02
+    v = np.repeat([5.0, 8.0, 11.0, 6.5], 50)
+    ss = steady_state(motor, v)
+    res, _ = balance_deviations(motor, t, v, ss.omega_rad_s, ss.current_a, 0.15, 0.5)
+    settled = np.tile(np.arange(50) >= 45, 4)  # the low-passes mix two points just after each step
+    assert np.max(np.abs(res.delta_omega_rad_s[settled])) < 0.5
+    assert np.max(np.abs(res.delta_current_a[settled])) < 0.02
+
+
+def test_speed_deviation_does_not_use_the_current(motor) -> None:
+    rng = np.random.default_rng(3)
+    t = np.arange(300) * 0.03
+    v = 7.0 + rng.normal(0, 0.5, t.size)
+    w = steady_state(motor, v).omega_rad_s + rng.normal(0, 10, t.size)
+    a, _ = balance_deviations(motor, t, v, w, rng.uniform(0, 10, t.size), 0.15, 0.5)
+    b, _ = balance_deviations(motor, t, v, w, np.full(t.size, np.nan), 0.15, 0.5)
+    np.testing.assert_allclose(a.delta_omega_rad_s, b.delta_omega_rad_s)
+    assert np.all(np.isnan(b.delta_current_a)) and np.all(np.isfinite(a.delta_current_a))
+
+
+def test_activity_sees_zigzags_not_steps_or_ramps() -> None:
+    t = np.arange(400) * 0.02
+    zigzag = 7.0 + 0.5 * (-1.0) ** np.arange(400)  # up, down, up...: 1 V between samples
+    step = np.where(t < 4.0, 6.0, 9.0)
+    ramp = 5.0 + 0.5 * t
+    a_zig, _ = input_activity(t, zigzag, 0.5)
+    a_step, _ = input_activity(t, step, 0.5)
+    a_ramp, _ = input_activity(t, ramp, 0.5)
+    assert a_zig[-1] == pytest.approx(1.0, rel=0.02)
+    assert np.max(a_step) == 0.0 and np.max(a_ramp) == 0.0
+
+
+def test_warm_mask_restarts_at_gaps_and_steps() -> None:
+    t = np.array([0.0, 0.1, 0.2, 0.3, 0.4, 1.5, 1.6, 1.7, 1.8, 1.9, 2.0, 2.1])
+    v = np.array([5, 5, 5, 5, 5, 5, 5, 5, 8, 8, 8, 8], dtype=float)
+    warm, _ = warm_mask(t, v, 0.15, 0.5, 1.0)
+    # start at 0 → warm from 0.2; gap before 1.5 → warm from 1.7; step at 1.8 → warm from 2.0
+    assert warm.tolist() == [False, False, True, True, True, False, False, True, False, False, True, True]
+    # split anywhere: the same
+    w1, c1 = warm_mask(t[:7], v[:7], 0.15, 0.5, 1.0)
+    w2, _ = warm_mask(t[7:], v[7:], 0.15, 0.5, 1.0, c1)
+    assert np.concatenate([w1, w2]).tolist() == warm.tolist()
+
+
+def _motor2_after(result, t0: float) -> np.ndarray:
+    sel = (result["motor"] == 2) & (result["time_s"] > t0) & result["steady"]
+    return sel
+
+
+def test_faults_show_their_signature_as_deviations(motor, flights) -> None:
+    profile = load_profile("flight_balance")
+    dev = {}
+    for name, flight in flights.items():
+        r = diagnose(flight.table, motor, profile)
+        sel = _motor2_after(r, 14.0)
+        dev[name] = (
+            np.median((r["omega_judged_rad_s"] - r["omega_model_rad_s"])[sel]),
+            np.median((r["current_judged_a"] - r["current_model_a"])[sel]),
+        )
+    w0, i0 = dev["healthy"]
+    assert abs(w0) < 5 and abs(i0) < 0.2
+    # F1.1: torque the model lacks: slower, more current; F3.1: the reverse; F4.1: voltage lost, both lower
+    assert dev["F1.1"][0] < -20 and dev["F1.1"][1] > 1.0
+    assert dev["F3.1"][0] > 50 and dev["F3.1"][1] < -1.0
+    assert dev["F4.1"][0] < -50 and dev["F4.1"][1] < -0.5
+
+
+def test_flight_balance_profile_names_each_fault_and_stays_quiet_when_healthy(motor, flights) -> None:
+    profile = load_profile("flight_balance")
+    for name, flight in flights.items():
+        r = diagnose(flight.table, motor, profile)
+        if name == "healthy":
+            assert np.all(r["announced"] == MotorState.NORMAL)
+            continue
+        sel = _motor2_after(r, 14.0)
+        assert np.mean(r["state"][sel] == MotorState.from_label(name)) > 0.95, name
+        others = (r["motor"] != 2) & r["steady"]
+        assert np.all(r["announced"][others] == MotorState.NORMAL), name
+
+
+def test_streaming_equals_batch_with_the_balance_rule(motor, flights) -> None:
+    profile = load_profile("flight_balance")
+    table = flights["F4.1"].table
+    batch = diagnose(table, motor, profile)
+    live = StreamingDiagnoser(motor, profile)
+    for motor_number in (2, 5):
+        part = table.for_motor(motor_number)
+        rows = [
+            live.update(
+                motor_number,
+                float(part["time_s"][k]),
+                float(part["voltage_v"][k]),
+                float(part["omega_rad_s"][k]),
+                float(part["current_a"][k]),
+                float(part["bus_voltage_v"][k]),
+                command=float(part["throttle"][k]),
+                sensor_current_a=float(part["esc_current_a"][k]),
+            )
+            for k in range(len(part))
+        ]
+        sel = batch["motor"] == motor_number
+        assert [r["state"] for r in rows] == batch["state"][sel].tolist()
+        assert [r["announced"] for r in rows] == batch["announced"][sel].tolist()
+
+
+def test_profile_round_trips_through_toml(tmp_path) -> None:
+    profile = load_profile("flight_balance")
+    path = tmp_path / "p.toml"
+    path.write_text(dump_profile(profile))
+    assert load_profile(path) == profile
+    assert profile.steady.kind == "balance" and profile.speed_band_per_activity > 0
+
+
+def test_activity_line_covers_every_bin() -> None:
+    rng = np.random.default_rng(11)
+    activity = rng.uniform(0.05, 3.0, 20000)
+    residual = np.abs(rng.normal(0.0, 5.0 + 20.0 * activity))
+    base, slope = _activity_line(residual, activity, 0.99, 1.5, 12)
+    assert slope > 20.0
+    edges = np.quantile(activity, np.linspace(0, 1, 13))
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = (activity >= lo) & (activity <= hi)
+        need = 1.5 * np.quantile(residual[sel], 0.99)
+        assert base + slope * np.median(activity[sel]) >= need - 1e-9
