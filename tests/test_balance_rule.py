@@ -10,7 +10,7 @@ from mav_motor_health.config import dump_profile, load_motor_params, load_profil
 from mav_motor_health.diagnosis.pipeline import StreamingDiagnoser, diagnose
 from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.diagnosis.steady import warm_mask
-from mav_motor_health.diagnosis.tuning import _activity_line
+from mav_motor_health.diagnosis.tuning import _activity_band
 from mav_motor_health.evaluation.campaign import FlightCase, run_flights
 from mav_motor_health.model.balance import balance_deviations, input_activity
 from mav_motor_health.model.equations import steady_state
@@ -144,17 +144,21 @@ def test_profile_round_trips_through_toml(tmp_path) -> None:
     path = tmp_path / "p.toml"
     path.write_text(dump_profile(profile))
     assert load_profile(path) == profile
-    assert profile.steady.kind == "balance" and profile.speed_band_per_activity > 0
+    assert profile.steady.kind == "balance" and len(profile.activity_band) > 1
 
 
-def test_activity_line_covers_every_bin() -> None:
+def test_activity_band_covers_every_bin() -> None:
     rng = np.random.default_rng(11)
     activity = rng.uniform(0.05, 3.0, 20000)
-    residual = np.abs(rng.normal(0.0, 5.0 + 20.0 * activity))
-    base, slope = _activity_line(residual, activity, 0.99, 1.5, 12)
-    assert slope > 20.0
+    res_w = np.abs(rng.normal(0.0, 5.0 + 20.0 * activity))
+    res_i = np.abs(rng.normal(0.0, 0.1 + 0.5 * activity))
+    base_w, base_i, rows = _activity_band(res_w, res_i, activity, 0.99, 1.5, 12)
+    xs = [r[0] for r in rows]
+    assert all(b > a for a, b in zip(xs, xs[1:]))
+    assert rows[-1][1] > 100.0 and rows[-1][2] > 2.0  # it widens where the noise grows
     edges = np.quantile(activity, np.linspace(0, 1, 13))
     for lo, hi in zip(edges[:-1], edges[1:]):
         sel = (activity >= lo) & (activity <= hi)
-        need = 1.5 * np.quantile(residual[sel], 0.99)
-        assert base + slope * np.median(activity[sel]) >= need - 1e-9
+        at = float(np.quantile(activity[sel], 0.9))
+        assert base_w + np.interp(at, xs, [r[1] for r in rows]) >= 0.999 * 1.5 * np.quantile(res_w[sel], 0.99)
+        assert base_i + np.interp(at, xs, [r[2] for r in rows]) >= 0.999 * 1.5 * np.quantile(res_i[sel], 0.99)

@@ -197,6 +197,26 @@ def _toml_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
 
 
+def _activity_band(raw: object, path: Path) -> tuple[tuple[float, float, float], ...]:
+    """``activity_band``: rows of [activity_v, speed_widening_rad_s, current_widening_a] (absent: none)."""
+    if raw is None:
+        return ()
+    ok = isinstance(raw, list) and all(
+        isinstance(row, list)
+        and len(row) == 3
+        and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in row)
+        for row in raw
+    )
+    if not ok:
+        raise ConfigError(
+            f"{raw!r}",
+            path=path,
+            key="profile.activity_band",
+            expected="a list of [activity_v, speed_widening_rad_s, current_widening_a] triples of numbers",
+        )
+    return tuple((float(a), float(w), float(i)) for a, w, i in raw)  # type: ignore[attr-defined]
+
+
 def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile:
     """A threshold profile from a TOML file with ``[profile]``, ``[steady]`` and ``[persistence]``."""
     path = resolve_params_file(name_or_path, "profiles")
@@ -243,8 +263,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             stall_split_ref_v=p.number("stall_split_ref_v", 11.1, minimum=0.0, unit="V"),
             speed_only_band_frac=p.number("speed_only_band_frac", 0.15, minimum=0.0, maximum=1.0),
             min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
-            speed_band_per_activity=p.number("speed_band_per_activity", 0.0, minimum=0.0, unit="rad/s per V"),
-            current_band_per_activity=p.number("current_band_per_activity", 0.0, minimum=0.0, unit="A per V"),
+            activity_band=_activity_band(p.raw("activity_band"), path),
             steady=SteadyRule(
                 step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
                 settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
@@ -300,8 +319,11 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"stall_split_ref_v = {profile.stall_split_ref_v!r}",
         f"speed_only_band_frac = {profile.speed_only_band_frac!r}",
         f"min_command = {profile.min_command!r}",
-        f"speed_band_per_activity = {profile.speed_band_per_activity!r}",
-        f"current_band_per_activity = {profile.current_band_per_activity!r}",
+    ]
+    if profile.activity_band:
+        rows = ", ".join(f"[{a!r}, {w!r}, {i!r}]" for a, w, i in profile.activity_band)
+        lines.append(f"activity_band = [{rows}]")
+    lines += [
         "",
         "[steady]",
         f"kind = {_toml_string(profile.steady.kind)}",

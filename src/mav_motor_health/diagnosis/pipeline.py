@@ -122,10 +122,17 @@ def diagnose_motor(
         current_seen = np.where(stalled_like, bal.current_mean_a, current_pred + bal.delta_current_a)
         current_seen = np.where(np.isfinite(np.asarray(current_a, dtype=float)), current_seen, np.nan)
         # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air
-        # is no step at all) puts two operating points into the low-passes: judge after settle_s.
+        # is no step at all) puts two operating points into the low-passes: judge after settle_s. A new
+        # stream (the first sample, or after a gap) waits until the activity is known too.
         step_v = rule.step_v + 3.0 * np.nan_to_num(activity)
         warm, steady_carry = warm_mask(
-            t, v, rule.settle_s, profile.persistence.max_gap_s, step_v, carry.steady
+            t,
+            v,
+            rule.settle_s,
+            profile.persistence.max_gap_s,
+            step_v,
+            carry.steady,
+            start_settle_s=3.0 * rule.activity_tau_s,  # the activity's low-pass has to fill up first
         )
         steady = warm & np.isfinite(v) & np.isfinite(omega_in)
         response_carry = carry.response
@@ -186,7 +193,9 @@ def diagnose_motor(
     state[(flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT  # never a motor fault from a bad sensor
     eligible = (steady | np.isin(state, _TRANSIENT_OK)) & (state != MotorState.NO_DATA)
     if command is not None and profile.min_command > 0:
-        eligible &= ~(np.asarray(command, dtype=float) < profile.min_command)  # idle and spin-up: not judged
+        idle = np.asarray(command, dtype=float) < profile.min_command  # idle and spin-up: not judged
+        eligible &= ~idle
+        steady = steady & ~idle
     announced, persistence_carry = announce(
         profile.persistence.hold_s(), t, state, eligible, carry.persistence, profile.persistence.max_gap_s
     )

@@ -40,7 +40,7 @@ class SteadyRule:
     into the speed and current deviations they imply in steady state (:mod:`..model.balance`); a sample
     is judged once the low-passes have had ``settle_s`` of samples without a gap longer than
     ``max_gap_s`` of the persistence rule. ``activity_tau_s`` is the window of the input activity that
-    widens the bands (``speed_band_per_activity``, ``current_band_per_activity``) and, with
+    widens the bands (the profile's ``activity_band``) and, with
     ``activity_ref_v`` > 0, lengthens the low-pass to ``residual_tau_s·activity/activity_ref_v`` (at most
     ``residual_tau_max_s``).
     """
@@ -127,8 +127,7 @@ class ThresholdProfile:
     stall_split_ref_v: float = 11.1
     speed_only_band_frac: float = 0.15
     min_command: float = 0.0
-    speed_band_per_activity: float = 0.0
-    current_band_per_activity: float = 0.0
+    activity_band: tuple[tuple[float, float, float], ...] = ()
     steady: SteadyRule = field(default_factory=SteadyRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
@@ -143,9 +142,21 @@ class ThresholdProfile:
             raise ConfigError(f"{self.stop_speed_rad_s!r}", key="stop_speed_rad_s", expected=">= 0 rad/s")
         if not self.stall_split_a > 0:
             raise ConfigError(f"{self.stall_split_a!r}", key="stall_split_a", expected="a current > 0 A")
-        for key in ("speed_band_per_activity", "current_band_per_activity"):
-            if not getattr(self, key) >= 0:
-                raise ConfigError(f"{getattr(self, key)!r}", key=key, expected="a slope >= 0 (per volt)")
+        widen = self.activity_band
+        if any(len(row) != 3 for row in widen):
+            raise ConfigError(
+                f"{widen!r}",
+                key="activity_band",
+                expected="a list of [activity_v, speed_widening_rad_s, current_widening_a] triples",
+            )
+        if any(b[0] <= a[0] for a, b in zip(widen, widen[1:])):
+            raise ConfigError(
+                "activities must increase", key="activity_band", expected="increasing activities"
+            )
+        if any(not (row[0] >= 0 and row[1] >= 0 and row[2] >= 0) for row in widen):
+            raise ConfigError(
+                "values must be >= 0", key="activity_band", expected="activities and widenings >= 0"
+            )
         band = self.current_band_a
         if len(band) < 1 or any(len(p) != 2 for p in band):
             raise ConfigError(
@@ -168,16 +179,20 @@ class ThresholdProfile:
         xs = [p[0] for p in self.current_band_a]
         ys = [p[1] for p in self.current_band_a]
         band = np.interp(v, xs, ys)
-        if activity_v is not None and self.current_band_per_activity:
-            band = band + self.current_band_per_activity * np.nan_to_num(np.asarray(activity_v, dtype=float))
+        if activity_v is not None and self.activity_band:
+            xs = [row[0] for row in self.activity_band]
+            band = band + np.interp(
+                np.nan_to_num(np.asarray(activity_v, dtype=float)), xs, [row[2] for row in self.activity_band]
+            )
         return band
 
     def speed_band(self, activity_v: ArrayLike | None = None) -> NDArray[np.float64] | float:
         """Half-width of the speed band [rad/s], widened by the input activity when given."""
-        if activity_v is None or not self.speed_band_per_activity:
+        if activity_v is None or not self.activity_band:
             return self.speed_band_rad_s
         a = np.nan_to_num(np.asarray(activity_v, dtype=float))
-        return self.speed_band_rad_s + self.speed_band_per_activity * a
+        xs = [row[0] for row in self.activity_band]
+        return self.speed_band_rad_s + np.interp(a, xs, [row[1] for row in self.activity_band])
 
     def stall_split(self, bus_voltage_v: ArrayLike | None = None) -> NDArray[np.float64] | float:
         """The F2.1/F4.2 current split [A], scaled with bus voltage when ``stall_split_per_v`` is set."""

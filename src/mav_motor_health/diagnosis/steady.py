@@ -25,6 +25,7 @@ class SteadyCarry:
     last_step_time_s: float = float("-inf")
     started: bool = False
     last_time_s: float = float("nan")
+    last_start_time_s: float = float("-inf")
 
 
 def steady_mask(
@@ -57,23 +58,32 @@ def warm_mask(
     max_gap_s: float,
     step_v: NDArray[np.float64] | float,
     carry: SteadyCarry = SteadyCarry(),
+    start_settle_s: float = 0.0,
 ) -> tuple[NDArray[np.bool_], SteadyCarry]:
-    """For the averaging rule (``kind = "balance"``): True once samples have come for ``settle_s``
-    without a gap longer than ``max_gap_s`` and without an input step larger than ``step_v`` (per
-    sample): the low-passes then hold samples of one operating point, or of an input that moves
-    steadily, not the sampled edge of a step."""
+    """For the averaging rule (``kind = "balance"``): True once samples have come for
+    ``start_settle_s`` (at least ``settle_s``) without a gap longer than ``max_gap_s``, and for
+    ``settle_s`` since the last input step larger than ``step_v`` (per sample): the low-passes then hold
+    samples of one operating point, or of an input that moves steadily, not the sampled edge of a step."""
     t = np.asarray(time_s, dtype=float)
     v = np.asarray(voltage_v, dtype=float)
     if t.size == 0:
         return np.zeros(0, dtype=bool), carry
     previous_t = np.concatenate([[carry.last_time_s], t[:-1]])
     previous_v = np.concatenate([[carry.last_voltage_v], v[:-1]])
-    # the first sample ever (NaN before it) restarts; a NaN input is no step (the low-passes hold)
-    restart = ~(t - previous_t <= max_gap_s) | (np.abs(v - previous_v) > step_v)
-    starts = np.where(restart, t, -np.inf)
-    last_start = np.maximum.accumulate(np.concatenate([[carry.last_step_time_s], starts]))[1:]
-    warm = t - last_start >= settle_s
+    start = ~(t - previous_t <= max_gap_s)  # the first sample ever (NaN before it) starts a stream
+    step = start | (np.abs(v - previous_v) > step_v)  # a NaN input is no step (the low-passes hold)
+    last_start = np.maximum.accumulate(
+        np.concatenate([[carry.last_start_time_s], np.where(start, t, -np.inf)])
+    )[1:]
+    last_step = np.maximum.accumulate(np.concatenate([[carry.last_step_time_s], np.where(step, t, -np.inf)]))[
+        1:
+    ]
+    warm = (t - last_step >= settle_s) & (t - last_start >= max(settle_s, start_settle_s))
     last_v = float(v[-1]) if np.isfinite(v[-1]) else carry.last_voltage_v
     return warm, SteadyCarry(
-        last_voltage_v=last_v, last_step_time_s=float(last_start[-1]), started=True, last_time_s=float(t[-1])
+        last_voltage_v=last_v,
+        last_step_time_s=float(last_step[-1]),
+        started=True,
+        last_time_s=float(t[-1]),
+        last_start_time_s=float(last_start[-1]),
     )

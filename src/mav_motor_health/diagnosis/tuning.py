@@ -10,15 +10,15 @@ those numbers off labelled flights instead:
    the tree judges them (after the flight rule's residual low-pass).
    The speed band is ``margin ×`` the ``quantile`` of |ω − ω_model|; the current band is the same per bin
    of input voltage, made non-decreasing in voltage, with the bins' centres as anchors. With the
-   ``balance`` rule the bands widen with the input's activity: a line over bins of activity, through the
-   calmest bin's need, with the smallest slope (per volt of activity) that covers every bin.
+   ``balance`` rule the bands widen with the input's activity: the widths come from the calmest bin of
+   activity, and each bin adds a row (activity, speed widening, current widening) to ``activity_band``.
 2. **Stall split.** The F2.1 and F4.2 currents after onset, below the stop speed, give one split per
    flight, the midpoint between the two kinds' currents; where the flights cover several bus voltages
    the split is fitted as ``a + b·(V_bus − V_ref)`` (a stalled motor's current scales with the voltage
    the ESC applies), else held constant.
 3. **Persistence.** With the new bands, the longest run of each false raw state on healthy samples
-   sets that state's hold time (× ``margin``, at least ``min_hold_s``): what flickered on healthy motors
-   is never announced. The result is checked by diagnosing the flights again; if any false event
+   (first to last eligible sample of the run, which is what persistence times) sets that state's hold
+   time (× ``margin``, at least ``min_hold_s``): what flickered on healthy motors is never announced. The result is checked by diagnosing the flights again; if any false event
    remains the bands are widened by 10 % and the procedure repeats.
 """
 
@@ -77,25 +77,36 @@ def _quantile(x: NDArray[np.float64], q: float) -> float:
     return float(np.quantile(x, q)) if x.size else float("nan")
 
 
-def _activity_line(
-    residual: NDArray[np.float64], activity: NDArray[np.float64], quantile: float, margin: float, bins: int
-) -> tuple[float, float]:
-    """A band ``base + slope·a`` over the input activity ``a``: through the need (margin × quantile of
-    |residual|) of the calmest bin, with the smallest slope ≥ 0 that covers every other bin's need at
-    that bin's median activity."""
+def _activity_band(
+    res_w: NDArray[np.float64],
+    res_i: NDArray[np.float64],
+    activity: NDArray[np.float64],
+    quantile: float,
+    margin: float,
+    bins: int,
+) -> tuple[float, float, tuple[tuple[float, float, float], ...]]:
+    """Base speed and current widths from the calmest activity bin, and rows (activity, speed widening,
+    current widening) from every bin: anchored at the bin's 90th percentile of activity (most of the
+    bin judged with no more than its own widening), non-decreasing in activity."""
     edges = np.quantile(activity, np.linspace(0, 1, bins + 1))
-    points = []
+    rows: list[tuple[float, float, float]] = []
     for lo, hi in zip(edges[:-1], edges[1:]):
         sel = (activity >= lo) & (activity <= hi)
         if sel.sum() >= 20:
-            points.append((float(np.median(activity[sel])), margin * _quantile(residual[sel], quantile)))
-    if not points:
-        return margin * _quantile(residual, quantile), 0.0
-    a0, need0 = points[0]
-    slope = max([0.0] + [(need - need0) / (a - a0) for a, need in points[1:] if a > a0])
-    # every bin covered: lift the base where a bin left of the line's anchor needs more
-    base = max(need - slope * a for a, need in points)
-    return max(base, 0.0), slope
+            anchor = float(np.quantile(activity[sel], 0.9))
+            rows.append(
+                (anchor, margin * _quantile(res_w[sel], quantile), margin * _quantile(res_i[sel], quantile))
+            )
+    if not rows:
+        return margin * _quantile(res_w, quantile), margin * _quantile(res_i, quantile), ()
+    speed = np.maximum.accumulate([r[1] for r in rows])
+    current = np.maximum.accumulate([r[2] for r in rows])
+    base_w, base_i = float(speed[0]), float(current[0])
+    table: dict[float, tuple[float, float, float]] = {}
+    for (anchor, _, _), w, i in zip(rows, speed, current):
+        key = round(anchor, 3)
+        table[key] = (key, round(float(w) - base_w, 3), round(float(i) - base_i, 4))
+    return base_w, base_i, tuple(table.values())
 
 
 def _longest_runs(result: TelemetryTable, healthy: NDArray[np.bool_], max_gap_s: float) -> dict[int, float]:
@@ -114,10 +125,9 @@ def _longest_runs(result: TelemetryTable, healthy: NDArray[np.bool_], max_gap_s:
             code = int(s[a])
             if code in (MotorState.NORMAL, MotorState.NO_DATA):
                 continue
-            # the run lasts until the next eligible sample with another state (or until its last sample
-            # when a gap ends it)
-            stop = t[b] if b < s.size and t[b] - t[b - 1] <= max_gap_s else t[b - 1]
-            longest[code] = max(longest.get(code, 0.0), float(stop - t[a]))
+            # persistence announces a state at an eligible sample of its run that comes at least the hold
+            # after the run's first: a hold longer than the run's last sample never announces it
+            longest[code] = max(longest.get(code, 0.0), float(t[b - 1] - t[a]))
     return longest
 
 
@@ -165,13 +175,14 @@ def tune_profile(
     if res_w.size < 50:
         raise ValueError(f"only {res_w.size} healthy steady samples: too few to tune bands")
     fit_activity = base.steady.kind == "balance" and bool(np.any(acts > 0))
-    speed_per_a = current_per_a = 0.0
+    activity_band: tuple[tuple[float, float, float], ...] = ()
     if fit_activity:
-        # Bands that widen with the input's activity: a line over activity bins (see _activity_line);
-        # the current band's voltage anchors are then read off what the slope leaves.
-        speed_band, speed_per_a = _activity_line(res_w, acts, quantile, margin, 2 * voltage_bins)
-        _, current_per_a = _activity_line(res_i, acts, quantile, margin, 2 * voltage_bins)
-        res_i = np.maximum(res_i - current_per_a * acts, 0.0)
+        # Bands that widen with the input's activity: widenings per activity bin (see _activity_band);
+        # the current band's voltage anchors are then read off the residuals less their bin's widening.
+        speed_band, _, activity_band = _activity_band(res_w, res_i, acts, quantile, margin, 2 * voltage_bins)
+        xs = [row[0] for row in activity_band]
+        if xs:
+            res_i = np.maximum(res_i - np.interp(acts, xs, [row[2] for row in activity_band]), 0.0)
     else:
         speed_band = margin * _quantile(res_w, quantile)
     edges = np.quantile(volts, np.linspace(0, 1, voltage_bins + 1))
@@ -217,8 +228,7 @@ def tune_profile(
         stall_split_a=round(split_a, 3),
         stall_split_per_v=round(per_v, 4),
         stall_split_ref_v=round(ref_v, 3),
-        speed_band_per_activity=round(speed_per_a, 3),
-        current_band_per_activity=round(current_per_a, 4),
+        activity_band=activity_band,
     )
     # 3. persistence from the longest false runs, then verify (widen the bands if needed)
     rounds = []
@@ -255,8 +265,9 @@ def tune_profile(
             profile,
             speed_band_rad_s=round(profile.speed_band_rad_s * 1.1, 3),
             current_band_a=tuple((v, round(w * 1.1, 4)) for v, w in profile.current_band_a),
-            speed_band_per_activity=round(profile.speed_band_per_activity * 1.1, 3),
-            current_band_per_activity=round(profile.current_band_per_activity * 1.1, 4),
+            activity_band=tuple(
+                (a, round(w * 1.1, 3), round(i * 1.1, 4)) for a, w, i in profile.activity_band
+            ),
         )
     report = {
         "flights": [f.name or f.table.source for f in flights],

@@ -149,7 +149,7 @@ def balance_deviations(
     inertia = p.J_kg_m2 or 0.0
     accel_torque = inertia * (w - w_mean) / tau
     accel_torque = np.where(np.isfinite(accel_torque), accel_torque, 0.0)
-    sb_mean = sb_mean + p.R_ohm * accel_torque
+    sb_mean = sb_mean - p.R_ohm * accel_torque
     rt_mean = rt_mean - accel_torque
     model = steady_state(p, v_mean)
     w_m = np.maximum(model.omega_rad_s, 0.0)
