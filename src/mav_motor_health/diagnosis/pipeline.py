@@ -151,6 +151,7 @@ def diagnose_motor(
         bus_voltage_v=bus_voltage_v,
         current_trusted=current_trusted,
         omega_expected_rad_s=np.minimum(omega_pred, model.omega_rad_s),
+        omega_free_rad_s=v / params.k_e,  # no fault turns the motor faster than V/k_e (tree rule 2)
     )
     state[(flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT  # never a motor fault from a bad sensor
     eligible = (steady | np.isin(state, _TRANSIENT_OK)) & (state != MotorState.NO_DATA)
