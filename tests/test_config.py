@@ -74,6 +74,9 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ("[profile]\nspeed_band_rad_s = -2\n", "profile.speed_band_rad_s"),
         ('[persistence.announce_s]\n"F9.9" = 0.2\n', "persistence.announce_s.F9.9"),
         ("[steady]\nsettle = 0.2\n", "steady"),
+        ("[profile]\nfree_speed_headroom_fraction = -0.5\n", "profile.free_speed_headroom_fraction"),
+        ("[profile]\nfree_speed_headroom_fraction = 1.5\n", "profile.free_speed_headroom_fraction"),
+        ('[profile]\nfree_speed_headroom_fraction = "half"\n', "profile.free_speed_headroom_fraction"),
     ],
 )
 def test_bad_profiles(tmp_path: Path, text: str, key: str) -> None:
@@ -81,6 +84,19 @@ def test_bad_profiles(tmp_path: Path, text: str, key: str) -> None:
     with pytest.raises(ConfigError) as info:
         load_profile(path)
     assert info.value.key == key and info.value.path == path
+
+
+@pytest.mark.parametrize(
+    ("line", "fraction"),
+    [("", 0.5), ("free_speed_headroom_fraction = 0", 0.5), ("free_speed_headroom_fraction = 1", 1.0)],
+)
+def test_free_speed_headroom_fraction_defaults_and_range(tmp_path: Path, line: str, fraction: float) -> None:
+    # 0 or absent: the default (0.5); the bundled profiles use the default
+    assert load_profile(write(tmp_path, f"[profile]\n{line}\n")).free_speed_headroom_fraction == fraction
+    assert load_profile("testbed").free_speed_headroom_fraction == 0.5
+    assert load_profile("flight").free_speed_headroom_fraction == 0.5
+    with pytest.raises(ConfigError, match="0 < f <= 1"):
+        ThresholdProfile(name="x", free_speed_headroom_fraction=0.0)
 
 
 def test_dump_round_trip(tmp_path: Path, paper_motor) -> None:
@@ -104,6 +120,7 @@ def test_profile_dump_round_trip(tmp_path: Path) -> None:
         stall_split_a=5.5,
         stall_split_per_v=0.3,
         stall_split_ref_v=15.0,
+        free_speed_headroom_fraction=0.7,
         steady=profile.steady,
         persistence=PersistenceRule(0.2, (("F4.1", 0.35), ("F2.1", 0.05)), 0.6),
         plausibility=profile.plausibility,

@@ -167,3 +167,91 @@ def test_transition_f31_start_up_shows_f21_then_f41(testbed_profile, paper_motor
     omegas = [50.0, w_m, w_m + 60]
     currents = [0.5, i_m - 3.0, i_m - 3.0]
     assert trajectory(testbed_profile, paper_motor, omegas, currents) == ["F2.1", "F4.1", "F3.1"]
+
+
+def test_free_speed_headroom_narrows_only_the_upper_side(testbed_profile, paper_motor) -> None:
+    # Rule 2 near the free speed: at 4.2 V the model is 410.4 rad/s and V/k_e 430.8 rad/s, a headroom of
+    # 20.4 rad/s; half of it (free_speed_headroom_fraction 0.5) is the band above the model.
+    v = 4.2
+    w_m, i_m = model_at(paper_motor, v)
+    free = v / paper_motor.k_e
+    half = testbed_profile.free_speed_headroom_fraction * (free - w_m)
+    assert testbed_profile.free_speed_headroom_fraction == 0.5 and half == pytest.approx(10.19, abs=0.01)
+    low_i = i_m - 1.0  # well below the 0.31 A current band at 4.2 V
+    omegas = [w_m + 15.0, w_m + 15.0, w_m + 9.0, w_m - 15.0, w_m - 25.0]
+    currents = [low_i, i_m, i_m, i_m, low_i]
+
+    def states(omega_free: float | None) -> list[str]:
+        n = len(omegas)
+        codes = classify(
+            testbed_profile,
+            omega_rad_s=omegas,
+            omega_model_rad_s=np.full(n, w_m),
+            current_a=currents,
+            current_model_a=np.full(n, i_m),
+            voltage_v=np.full(n, v),
+            omega_free_rad_s=None if omega_free is None else np.full(n, omega_free),
+        )
+        return [MotorState(int(c)).label for c in codes]
+
+    # inside the full ±20 rad/s band, beyond half the headroom: F3.1 with a low current, UNKNOWN without;
+    # inside half the headroom: NORMAL; below the model the full band still applies (-15 NORMAL, -25 F4.1)
+    assert states(free) == ["F3.1", "UNKNOWN", "NORMAL", "NORMAL", "F4.1"]
+    assert states(None) == ["F4.1", "NORMAL", "NORMAL", "NORMAL", "F4.1"]  # no free speed: the paper's band
+    # where the headroom is large (9.2 V: 148 rad/s) the band is the profile's ±20 rad/s as before
+    w9, i9 = model_at(paper_motor, 9.2)
+    code = classify(
+        testbed_profile,
+        omega_rad_s=[w9 + 19.0, w9 + 21.0],
+        omega_model_rad_s=[w9, w9],
+        current_a=[i9 - 3.0, i9 - 3.0],
+        current_model_a=[i9, i9],
+        voltage_v=[9.2, 9.2],
+        omega_free_rad_s=[9.2 / paper_motor.k_e] * 2,
+    )
+    assert [MotorState(int(c)).label for c in code] == ["F4.1", "F3.1"]
+
+
+def test_free_speed_headroom_never_narrows_below_the_speed_noise(testbed_profile, paper_motor) -> None:
+    # Near idle the headroom vanishes (2 V: 2.5 rad/s) but the ±10 rad/s noise does not: the band above the
+    # model stays at least half the band (10 rad/s), else noise alone would be "faster".
+    v = 2.0
+    w_m, i_m = model_at(paper_motor, v)
+    assert v / paper_motor.k_e - w_m < 3.0
+    code = classify(
+        testbed_profile,
+        omega_rad_s=[w_m + 9.9, w_m + 10.5, w_m + 10.5],
+        omega_model_rad_s=[w_m] * 3,
+        current_a=[i_m, i_m, i_m - 1.0],
+        current_model_a=[i_m] * 3,
+        voltage_v=[v] * 3,
+        omega_free_rad_s=[v / paper_motor.k_e] * 3,
+    )
+    assert [MotorState(int(c)).label for c in code] == ["NORMAL", "UNKNOWN", "F3.1"]
+    # and a free speed below the model (a motor spinning down in flight) is no headroom, not a negative one
+    code = classify(
+        testbed_profile,
+        omega_rad_s=[w_m + 9.9],
+        omega_model_rad_s=[w_m],
+        current_a=[i_m],
+        current_model_a=[i_m],
+        voltage_v=[v],
+        omega_free_rad_s=[w_m - 50.0],
+    )
+    assert MotorState(int(code[0])) == MotorState.NORMAL
+
+
+def test_free_speed_headroom_leaves_the_speed_only_branch_alone(testbed_profile, paper_motor) -> None:
+    # Without a current, FAST keeps the wide band: speed noise near the free speed is not a fault.
+    v = 4.2
+    w_m, _ = model_at(paper_motor, v)
+    code = classify(
+        testbed_profile,
+        omega_rad_s=[w_m + 15.0],
+        omega_model_rad_s=[w_m],
+        current_a=[np.nan],
+        current_model_a=[np.nan],
+        voltage_v=[v],
+        omega_free_rad_s=[v / paper_motor.k_e],
+    )
+    assert MotorState(int(code[0])) == MotorState.NORMAL

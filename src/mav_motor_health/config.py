@@ -262,6 +262,8 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             stall_split_per_v=p.number("stall_split_per_v", 0.0, unit="A/V"),
             stall_split_ref_v=p.number("stall_split_ref_v", 11.1, minimum=0.0, unit="V"),
             speed_only_band_frac=p.number("speed_only_band_frac", 0.15, minimum=0.0, maximum=1.0),
+            # 0 (or absent) means the default; the range is checked by ThresholdProfile
+            free_speed_headroom_fraction=p.number("free_speed_headroom_fraction", 0.0) or 0.5,
             min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
             activity_band=_activity_band(p.raw("activity_band"), path),
             steady=SteadyRule(
@@ -318,6 +320,7 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"stall_split_per_v = {profile.stall_split_per_v!r}",
         f"stall_split_ref_v = {profile.stall_split_ref_v!r}",
         f"speed_only_band_frac = {profile.speed_only_band_frac!r}",
+        f"free_speed_headroom_fraction = {profile.free_speed_headroom_fraction!r}",
         f"min_command = {profile.min_command!r}",
     ]
     if profile.activity_band:

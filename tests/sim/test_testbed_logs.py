@@ -1,9 +1,11 @@
-"""The committed testbed logs reproduce the paper (section IV.A): every fault diagnosed, at least as fast
-as the paper's diagnosis times, with the testbed profile and the foundation's ``diagnose``."""
+"""The committed testbed logs reproduce the paper (section IV.A): every fault diagnosed in all five cases,
+at least as fast as the paper's diagnosis times, with the testbed profile and the foundation's
+``diagnose`` — F3.1 at 4.2 V included, thanks to the free-speed headroom rule (tree rule 2)."""
 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,9 +17,6 @@ from mav_motor_health.telemetry.csv import read_csv
 
 CASES_V = ("4.2", "5.8", "7.6", "9.2", "11.0")
 FAULTS = ("F1.1", "F2.1", "F3.1", "F4.1", "F4.2")
-#: The one case the paper's own model cannot reproduce: at 4.2 V a lighter propeller can lift the speed
-#: by at most V/k_e − ω ≈ 20.4 rad/s, the speed band's width (test_motor.test_f31_speed_rise_is_capped...).
-PHYSICS_LIMITED = {("F3.1", "4.2")}
 
 
 def run(sitl_logs, paper_motor, profile, name):
@@ -35,9 +34,6 @@ def test_fault_diagnosed_in_steady_state_as_fast_as_the_paper(
 ):
     cols, truth, s = run(sitl_logs, paper_motor, testbed_profile, f"{fault}_{volts}V")
     assert truth["faults"][0]["fault"] == fault and truth["voltage_v"] == float(volts)
-    if (fault, volts) in PHYSICS_LIMITED:
-        assert s.fault_accuracy_pct is not None and s.fault_accuracy_pct > 20.0
-        return
     assert s.detection_s is not None, f"{fault} at {volts} V never announced"
     assert s.detection_s <= PAPER["testbed_detection_s"][fault]
     assert MotorState(int(cols["announced"][-1])).label == fault
@@ -50,6 +46,52 @@ def test_healthy_testbed_runs_stay_normal(sitl_logs, paper_motor, testbed_profil
     _, _, s = run(sitl_logs, paper_motor, testbed_profile, f"healthy_{volts}V")
     assert s.false_events == 0
     assert s.normal_accuracy_pct is not None and s.normal_accuracy_pct > 99.0
+
+
+def test_healthy_samples_of_every_testbed_log_stay_normal(sitl_logs, paper_motor, testbed_profile):
+    """The narrowed band above the model (half the free-speed headroom, 10.2 rad/s at 4.2 V) raises no
+    false state on healthy data: every sample before onset, and every sample of the healthy runs, of all
+    30 testbed logs is NORMAL — the ±10 rad/s speed noise stays inside it."""
+    names = [f"{fault}_{volts}V" for fault in (*FAULTS, "healthy") for volts in CASES_V]
+    for name in names:
+        cols, truth, _ = run(sitl_logs, paper_motor, testbed_profile, name)
+        onset = truth["faults"][0]["onset_s"] if truth["faults"] else np.inf
+        before = cols["time_s"] < onset
+        assert before.sum() > 300, name
+        assert np.all(cols["state"][before] == MotorState.NORMAL), name
+        assert np.all(cols["announced"][before] == MotorState.NORMAL), name
+
+
+@pytest.mark.parametrize("volts", [2.0, 3.0, 4.0])
+def test_healthy_motor_below_the_papers_voltages_stays_normal(paper_motor, testbed_profile, volts):
+    """Below 4.2 V the free-speed headroom shrinks to a few rad/s (2.5 at 2 V) while the ±10 rad/s noise
+    stays: the band above the model never narrows below half the band, so noise is not "faster"."""
+    from mav_motor_health.sim.steady import testbed_run
+    from mav_motor_health.telemetry.table import TelemetryTable
+
+    rng = np.random.default_rng(11)
+    columns = testbed_run(paper_motor, "F3.1", volts, rng, duration_s=60.0, fault_at_s=60.0)
+    result = diagnose(TelemetryTable(columns), paper_motor, testbed_profile)
+    assert np.all(result["state"] == MotorState.NORMAL)
+    assert np.all(result["announced"] == MotorState.NORMAL)
+
+
+def test_the_free_speed_headroom_is_what_names_f31_at_low_voltage(sitl_logs, paper_motor, testbed_profile):
+    """At 4.2 V the trimmed propeller lifts the speed by ≈ 20 rad/s, all the headroom V/k_e − ω_model
+    there: on the paper's full ±20 rad/s band (f = 1 makes clip(f·20.4, 10, 20) the band itself) the tree
+    flickers between F3.1 and F4.1; on half the headroom F3.1 holds."""
+    full_band = replace(testbed_profile, free_speed_headroom_fraction=1.0)
+    _, _, narrowed = run(sitl_logs, paper_motor, testbed_profile, "F3.1_4.2V")
+    _, _, full = run(sitl_logs, paper_motor, full_band, "F3.1_4.2V")
+    assert full.fault_accuracy_pct is not None and full.fault_accuracy_pct < 70.0
+    assert full.detection_s is None or full.detection_s > PAPER["testbed_detection_s"]["F3.1"]
+    assert narrowed.fault_accuracy_pct is not None and narrowed.fault_accuracy_pct > 95.0
+    assert narrowed.detection_s is not None and narrowed.detection_s <= PAPER["testbed_detection_s"]["F3.1"]
+    # where the headroom is wide (5.8 V: 48 rad/s) the narrowing changes nothing
+    assert (
+        run(sitl_logs, paper_motor, full_band, "F3.1_5.8V")[2]
+        == run(sitl_logs, paper_motor, testbed_profile, "F3.1_5.8V")[2]
+    )
 
 
 def test_manifest_lists_every_committed_log(sitl_logs):

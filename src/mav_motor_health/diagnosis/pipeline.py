@@ -189,6 +189,7 @@ def diagnose_motor(
         current_trusted=current_trusted,
         omega_expected_rad_s=omega_expected,
         activity_v=activity,
+        omega_free_rad_s=judged_v / params.k_e,  # no fault turns the motor faster than V/k_e (rule 2)
     )
     state[(flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT  # never a motor fault from a bad sensor
     eligible = (steady | np.isin(state, _TRANSIENT_OK)) & (state != MotorState.NO_DATA)

@@ -116,6 +116,10 @@ class ThresholdProfile:
     The current band's half-width is interpolated linearly in input voltage between the anchor points
     ``current_band_a`` (pairs of voltage [V], half-width [A]) and held at the end values outside them
     (``np.interp``): the paper gives ±0.25 A at the low end and ±2.5 A at the high end of 4–11 V.
+
+    ``free_speed_headroom_fraction`` (0 < f ≤ 1) narrows the upper side of the speed band where the model
+    speed is near the free speed ``V/k_e``: "speed above the band" is ω > ω_model + clip(f·(V/k_e −
+    ω_model), band/2, band) (see :mod:`.tree`, rule 2). 0 or absent in TOML: the default, 0.5.
     """
 
     name: str
@@ -126,6 +130,7 @@ class ThresholdProfile:
     stall_split_per_v: float = 0.0
     stall_split_ref_v: float = 11.1
     speed_only_band_frac: float = 0.15
+    free_speed_headroom_fraction: float = 0.5
     min_command: float = 0.0
     activity_band: tuple[tuple[float, float, float], ...] = ()
     steady: SteadyRule = field(default_factory=SteadyRule)
@@ -156,6 +161,12 @@ class ThresholdProfile:
         if any(not (row[0] >= 0 and row[1] >= 0 and row[2] >= 0) for row in widen):
             raise ConfigError(
                 "values must be >= 0", key="activity_band", expected="activities and widenings >= 0"
+            )
+        if not 0 < self.free_speed_headroom_fraction <= 1:
+            raise ConfigError(
+                f"{self.free_speed_headroom_fraction!r}",
+                key="free_speed_headroom_fraction",
+                expected="a fraction 0 < f <= 1 of the free-speed headroom (0 or absent: the default 0.5)",
             )
         band = self.current_band_a
         if len(band) < 1 or any(len(p) != 2 for p in band):

@@ -4,7 +4,8 @@ Our reading of the paper, checked against the transitions it reports in section 
 
 1. ω below the stop speed (100 rad/s): ``F2.1`` if i < 6 A, else ``F4.2`` (the motor stalls; a broken
    back-EMF signal keeps the phases driven and draws more current than an open phase);
-2. ω above the speed band and i below the current band: ``F3.1`` (a lighter propeller);
+2. ω above the speed band and i below the current band: ``F3.1`` (a lighter propeller). Above the model,
+   the band is narrowed where the model speed is near the free speed (see "Free-speed headroom" below);
 3. ω and i both inside their bands: ``NORMAL``;
 4. otherwise, with ω inside or below its band: ``F1.1`` if i is above its band (friction: slower and more
    current), else ``F4.1`` (an open transistor: slower and less current);
@@ -21,6 +22,30 @@ speed band: a motor at idle or disarmed is not "stopped" in the paper's sense (i
 4 V, 390 rad/s). This is our addition. ``omega_expected_rad_s`` (default: the model speed) is the speed the
 model is sure of; in flight the pipeline passes the lower of the steady state and its lagged response, so
 that a motor spinning down after its command dropped is not taken for a stalled one.
+
+Free-speed headroom (rule 2, our addition). No fault can make a motor turn faster than its free speed
+``V/k_e``, where the back-EMF equals the input voltage: a lighter propeller (F3.1), even none at all, can
+raise the speed by at most the headroom ``V/k_e − ω_model``. With the paper's motor that headroom is
+220 rad/s at 11 V but only 20.4 rad/s at 4.2 V, the ±20 rad/s band itself: there the paper's trimmed
+propeller lifts the speed by 20.2 rad/s, so with the ±10 rad/s speed noise the full band leaves the tree
+flickering between F3.1 and F4.1 (about half the samples each, F3.1 announced well after the paper's
+0.35 s), while the paper reports F3.1 diagnosed in all five testbed cases within 0.35 s. So above the
+model the band narrows to a share of the headroom:
+
+    speed_high  ⇔  ω > ω_model + clip(f · (V/k_e − ω_model), band/2, band),
+    f = ``free_speed_headroom_fraction`` (default 0.5: halfway between the model and the free speed).
+
+That is min(band, f · headroom) with a floor: never below half the band, the speed noise (the paper set
+the band at twice its ±10 rad/s noise). Without the floor a healthy motor near idle, where the headroom
+vanishes but the noise does not, would read as "faster" on noise alone, the more often the lower the
+voltage. At 4.2 V the floor does not bind (half the headroom is 10.19 rad/s).
+
+Only the upper side changes: ``speed_low`` keeps the full band. The narrowing applies only where
+``omega_free_rad_s`` (``V/k_e`` per sample) is given; without it, the full band as before. A healthy
+sample beyond the narrowed band with its current inside the band is ``UNKNOWN`` (rule 5) for that
+sample; F3.1 still needs the current below its band. The speed-only branch below keeps its wide band:
+without the current nothing would confirm a departure that small, and noise near the free speed would
+become ``FAST``.
 """
 
 from __future__ import annotations
@@ -45,12 +70,17 @@ def classify(
     bus_voltage_v: ArrayLike | None = None,
     current_trusted: ArrayLike | None = None,
     omega_expected_rad_s: ArrayLike | None = None,
+    omega_free_rad_s: ArrayLike | None = None,
     activity_v: ArrayLike | None = None,
 ) -> NDArray[np.int8]:
     """State code per sample (see :class:`MotorState`); NaN inputs give ``NO_DATA``.
 
-    ``activity_v`` (the input's activity, :func:`~mav_motor_health.model.balance.input_activity`)
-    widens the bands as the profile says; None: the profile's fixed bands.
+    ``omega_free_rad_s`` is the free speed ``V/k_e`` per sample: where given, the upper side of the speed
+    band narrows to ``free_speed_headroom_fraction`` of the headroom ``V/k_e − ω_model``, kept between half
+    the band and the band (rule 2). ``None``: the full band on both sides. The speed-only branch (no
+    trusted current) always uses its wide band. ``activity_v`` (the input's activity,
+    :func:`~mav_motor_health.model.balance.input_activity`) widens the bands as the profile says; None:
+    the profile's fixed bands.
     """
     w, w_model, i, i_model, v = np.broadcast_arrays(
         *(
@@ -64,7 +94,14 @@ def classify(
     split = np.broadcast_to(profile.stall_split(bus_voltage_v), w.shape)
 
     speed_low = w < w_model - band_w
-    speed_high = w > w_model + band_w
+    band_up: NDArray[np.float64] | float = band_w
+    if omega_free_rad_s is not None:
+        # Rule 2: no fault lifts the speed above V/k_e; near it, a share f of the headroom is the band...
+        headroom = np.broadcast_to(np.asarray(omega_free_rad_s, dtype=float), w.shape) - w_model
+        # ... but never below half the band, the speed noise (near idle the headroom vanishes, the noise not)
+        narrowed = np.clip(profile.free_speed_headroom_fraction * headroom, 0.5 * band_w, band_w)
+        band_up = np.where(np.isfinite(narrowed), narrowed, band_w)
+    speed_high = w > w_model + band_up
     current_low = i < i_model - band_i
     current_high = i > i_model + band_i
     # Rule 1 needs the model to expect a turning motor: an idle or disarmed motor is not a stalled one.

@@ -13,7 +13,8 @@ Each fault acts on one motor from ``onset_s`` on, scaled by ``severity`` (1.0: a
             factor falls as the length to the 5th power and the thrust as the 4th, ``(1 − s)^5`` and
             ``(1 − s)^4``. Speed higher, current lower (Fig. 11). The paper trimmed the blades "to about
             30 % of their original length": severity 0.7. At low voltage the speed can rise at most to
-            the free speed ``V/k_e`` (at 4.2 V only ≈ 20 rad/s above the model, the speed band's width).
+            the free speed ``V/k_e`` (at 4.2 V only ≈ 20 rad/s above the model, the speed band's width;
+            the tree narrows its band above the model there, :mod:`..diagnosis.tree` rule 2).
 ``F4.1``    one transistor open: two of the six commutation steps do not conduct and the current of the
             others has a longer path; the drive (torque and current at a given speed) falls to
             ``1/(1 + 2·severity)``, like a resistance ``R·(1 + 2·severity)``: both speed and current lower,
