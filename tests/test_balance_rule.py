@@ -84,7 +84,7 @@ def _motor2_after(result, t0: float) -> np.ndarray:
 
 
 def test_faults_show_their_signature_as_deviations(motor, flights) -> None:
-    profile = load_profile("flight_balance")
+    profile = load_profile("flight")
     dev = {}
     for name, flight in flights.items():
         r = diagnose(flight.table, motor, profile)
@@ -101,8 +101,8 @@ def test_faults_show_their_signature_as_deviations(motor, flights) -> None:
     assert dev["F4.1"][0] < -50 and dev["F4.1"][1] < -0.5
 
 
-def test_flight_balance_profile_names_each_fault_and_stays_quiet_when_healthy(motor, flights) -> None:
-    profile = load_profile("flight_balance")
+def test_flight_profile_names_each_fault_and_stays_quiet_when_healthy(motor, flights) -> None:
+    profile = load_profile("flight")
     for name, flight in flights.items():
         r = diagnose(flight.table, motor, profile)
         if name == "healthy":
@@ -115,7 +115,7 @@ def test_flight_balance_profile_names_each_fault_and_stays_quiet_when_healthy(mo
 
 
 def test_streaming_equals_batch_with_the_balance_rule(motor, flights) -> None:
-    profile = load_profile("flight_balance")
+    profile = load_profile("flight")
     table = flights["F4.1"].table
     batch = diagnose(table, motor, profile)
     live = StreamingDiagnoser(motor, profile)
@@ -140,7 +140,7 @@ def test_streaming_equals_batch_with_the_balance_rule(motor, flights) -> None:
 
 
 def test_profile_round_trips_through_toml(tmp_path) -> None:
-    profile = load_profile("flight_balance")
+    profile = load_profile("flight")
     path = tmp_path / "p.toml"
     path.write_text(dump_profile(profile))
     assert load_profile(path) == profile

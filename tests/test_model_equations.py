@@ -87,3 +87,12 @@ def test_invalid_parameters_are_refused() -> None:
         MotorParams(R_ohm=0.1, k_e=float("nan"), C_p=1e-10, B=0, T_f=0)
     with pytest.raises(ConfigError, match="'k'"):
         MotorParams(R_ohm=0.1, k_e=0.01, C_p=1e-10, B=0, T_f=0, k=9)
+
+
+def test_at_the_start_voltage_itself_the_motor_stands_still() -> None:
+    # found by Hypothesis: k_e·V/R − T_f rounded to a tiny positive drive at V = T_f·R/k_e
+    params = MotorParams(
+        R_ohm=0.0428899947017729, k_e=0.08151375368082697, C_p=1e-9, B=0.0, T_f=0.04563777886388609, k=3
+    )
+    sol = steady_state(params, np.array([params.start_voltage_v, np.nextafter(params.start_voltage_v, 0)]))
+    assert np.all(sol.omega_rad_s == 0)

@@ -58,7 +58,7 @@ def test_tune_command_on_labelled_logs(tmp_path: Path, capsys) -> None:
     out = tmp_path / "tuned.toml"
     assert main(["tune", *logs, "--out", str(out)]) == 0
     tuned = load_profile(out)
-    assert tuned.name == "flight" and tuned.steady.kind == "dynamic"
+    assert tuned.name == "flight" and tuned.steady.kind == "balance" and tuned.activity_band
     text = out.read_text()
     assert "flight_healthy_calm.csv" in text  # the record of what it was tuned on
     report = json.loads(capsys.readouterr().out.split("\n", 1)[1])
@@ -81,3 +81,17 @@ def test_px4_baseline_flags_under_and_over_current_after_its_hold() -> None:
     assert 15 + detector.hold_s <= t[onset] < 16.5 and not (flags == OVER).any()
     high = np.where(t > 15, current + 4.0, current)
     assert (detect(detector, t, throttle, high)[t > 17] == OVER).all()
+
+
+def test_tail_hold_extrapolates_exponential_runs() -> None:
+    from mav_motor_health.diagnosis.tuning import _tail_hold
+
+    rng = np.random.default_rng(5)
+    hours, per_hour, mean_s = 0.5, 2000.0, 0.05
+    runs = list(rng.exponential(mean_s, int(hours * per_hour)))
+    # runs longer than h come per_hour·exp(−h/mean) times an hour: once per 100 h at
+    expected = mean_s * np.log(per_hour / 0.01)
+    hold = _tail_hold(runs, hours, 0.01)
+    assert abs(hold - expected) < 0.15 * expected
+    assert hold > max(runs)  # it reaches beyond what the training flights saw
+    assert _tail_hold(runs[:5], hours, 0.01) == 0.0  # too few runs: no extrapolation

@@ -251,6 +251,12 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
         for label in list(announce_section.data)
     )
     announce_section.done()
+    per_activity_section = pers.table("announce_per_activity_s")
+    per_activity = tuple(
+        (label, per_activity_section.number(label, minimum=0.0, unit="s per V"))
+        for label in list(per_activity_section.data)
+    )
+    per_activity_section.done()
     try:
         profile = ThresholdProfile(
             name=p.text("name", path.stem),
@@ -290,6 +296,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
                 clear_s=pers.number("clear_s", 0.5, minimum=0.0, unit="s"),
                 max_gap_s=pers.number("max_gap_s", float("inf"), minimum=0.0, unit="s"),
                 announce_s=announce,
+                announce_per_activity_s=per_activity,
             ),
         )
     except ConfigError as exc:
@@ -346,7 +353,15 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         lines.append(f"max_gap_s = {profile.persistence.max_gap_s!r}")
     if profile.persistence.announce_s:
         lines += ["", "[persistence.announce_s]"]
-        lines += [f"{_toml_string(label)} = {value!r}" for label, value in profile.persistence.announce_s]
+        lines += [
+            f"{_toml_string(label)} = {float(value)!r}" for label, value in profile.persistence.announce_s
+        ]
+    if profile.persistence.announce_per_activity_s:
+        lines += ["", "[persistence.announce_per_activity_s]"]
+        lines += [
+            f"{_toml_string(label)} = {float(value)!r}"
+            for label, value in profile.persistence.announce_per_activity_s
+        ]
     lines += ["", "[plausibility]"]
     lines += [f"{name} = {value!r}" for name, value in profile.plausibility.__dict__.items()]
     if source:

@@ -35,11 +35,15 @@ def announce(
     eligible: NDArray[np.bool_],
     carry: PersistenceCarry = PersistenceCarry(),
     max_gap_s: float = float("inf"),
+    hold_per_activity_s: NDArray[np.float64] | None = None,
+    activity: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.int8], PersistenceCarry]:
     """Announced state per sample given raw states; ``hold_s[code]`` is each state's hold time.
 
     A run of one state also ends where two eligible samples are more than ``max_gap_s`` apart: a state
-    seen once, then again after a long silence, has not *held* in between.
+    seen once, then again after a long silence, has not *held* in between. With ``hold_per_activity_s``
+    and ``activity`` a state's hold grows with the input activity at each sample,
+    ``hold_s[code] + hold_per_activity_s[code]·activity``: in gusty air a false state flickers longer.
     """
     t = np.asarray(time_s, dtype=float)
     s = np.asarray(state, dtype=np.int64)
@@ -59,8 +63,13 @@ def announce(
             candidate, since = run_state, run_since
             if run_state == announced:
                 continue
-            due = run_since + float(hold_s[run_state])
-            j = start + int(np.searchsorted(te[start:end], due, side="left"))
+            if hold_per_activity_s is None or activity is None or not hold_per_activity_s[run_state]:
+                due = run_since + float(hold_s[run_state])
+                j = start + int(np.searchsorted(te[start:end], due, side="left"))
+            else:
+                extra = float(hold_per_activity_s[run_state]) * np.nan_to_num(activity[idx[start:end]])
+                held = np.flatnonzero(te[start:end] - run_since >= float(hold_s[run_state]) + extra)
+                j = start + (int(held[0]) if held.size else end - start)
             if j < end:
                 announced = run_state
                 change_at.append(int(idx[j]))

@@ -189,7 +189,10 @@ def diagnose_motor(
         current_trusted=current_trusted,
         omega_expected_rad_s=omega_expected,
         activity_v=activity,
-        omega_free_rad_s=judged_v / params.k_e,  # no fault turns the motor faster than V/k_e (rule 2)
+        # No fault turns the motor faster than V/k_e (tree rule 2). The balance rule judges the model plus
+        # a low-passed deviation, not a measured speed: its band is the deviation's noise, which the
+        # physical cap does not bound, so it keeps the full band.
+        omega_free_rad_s=None if rule.kind == "balance" else v / params.k_e,
     )
     state[(flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT  # never a motor fault from a bad sensor
     eligible = (steady | np.isin(state, _TRANSIENT_OK)) & (state != MotorState.NO_DATA)
@@ -198,7 +201,14 @@ def diagnose_motor(
         eligible &= ~idle
         steady = steady & ~idle
     announced, persistence_carry = announce(
-        profile.persistence.hold_s(), t, state, eligible, carry.persistence, profile.persistence.max_gap_s
+        profile.persistence.hold_s(),
+        t,
+        state,
+        eligible,
+        carry.persistence,
+        profile.persistence.max_gap_s,
+        hold_per_activity_s=profile.persistence.hold_per_activity_s(),
+        activity=activity,
     )
     columns: dict[str, NDArray] = {
         "state": state,

@@ -89,16 +89,32 @@ class PersistenceRule:
     announce_s: tuple[tuple[str, float], ...] = ()
     clear_s: float = 0.5
     max_gap_s: float = float("inf")
+    #: per state label: seconds of hold added per volt of input activity (balance rule)
+    announce_per_activity_s: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
-        values = [self.default_announce_s, self.clear_s, *(v for _, v in self.announce_s)]
+        values = [
+            self.default_announce_s,
+            self.clear_s,
+            *(v for _, v in self.announce_s),
+            *(v for _, v in self.announce_per_activity_s),
+        ]
         if any(not (v >= 0) for v in values):
             raise ConfigError("persistence times must be >= 0 s", key="persistence", expected="seconds >= 0")
-        for label, _ in self.announce_s:
+        for label, _ in (*self.announce_s, *self.announce_per_activity_s):
             try:
                 MotorState.from_label(label)
             except ValueError as exc:
                 raise ConfigError(str(exc), key=f"persistence.announce_s.{label}") from None
+
+    def hold_per_activity_s(self) -> NDArray[np.float64] | None:
+        """Hold added per volt of input activity, per state code; None when no state has one."""
+        if not self.announce_per_activity_s:
+            return None
+        slopes = np.zeros(len(MotorState))
+        for label, value in self.announce_per_activity_s:
+            slopes[MotorState.from_label(label)] = value
+        return slopes
 
     def hold_s(self) -> NDArray[np.float64]:
         """Hold time per state code (index = :class:`MotorState` value)."""

@@ -16,9 +16,13 @@ those numbers off labelled flights instead:
    flight, the midpoint between the two kinds' currents; where the flights cover several bus voltages
    the split is fitted as ``a + b·(V_bus − V_ref)`` (a stalled motor's current scales with the voltage
    the ESC applies), else held constant.
-3. **Persistence.** With the new bands, the longest run of each false raw state on healthy samples
-   (first to last eligible sample of the run, which is what persistence times) sets that state's hold
-   time (× ``margin``, at least ``min_hold_s``): what flickered on healthy motors is never announced. The result is checked by diagnosing the flights again; if any false event
+3. **Persistence.** With the new bands, the runs of each false raw state on healthy samples (first to
+   last eligible sample of a run, which is what persistence times) set that state's hold time: at least
+   ``margin`` × the longest, and at least the run length that the runs' exponential tail says comes
+   ``false_rate_per_hour`` times per flight hour (0.01: one per hundred hours) on the healthy flights,
+   so that a few minutes of training flight stand for the hours a fleet flies. With the ``balance`` rule
+   the holds grow with the input activity (``h0 + slope·a`` over the flights' median activities, see
+   ``_hold_line``). What flickered on healthy motors is not announced. The result is checked by diagnosing the flights again; if any false event
    remains the bands are widened by 10 % and the procedure repeats.
 """
 
@@ -109,9 +113,11 @@ def _activity_band(
     return base_w, base_i, tuple(table.values())
 
 
-def _longest_runs(result: TelemetryTable, healthy: NDArray[np.bool_], max_gap_s: float) -> dict[int, float]:
-    """Longest duration [s] of each raw state other than NORMAL over eligible healthy samples, per motor run."""
-    longest: dict[int, float] = {}
+def _false_runs(
+    result: TelemetryTable, healthy: NDArray[np.bool_], max_gap_s: float
+) -> dict[int, list[float]]:
+    """Durations [s] of the runs of each raw state other than NORMAL over eligible healthy samples."""
+    runs: dict[int, list[float]] = {}
     eligible = (result["steady"] | np.isin(result["state"], [MotorState.F2_1, MotorState.F4_2])) & healthy
     for motor in result.motors():
         sel = np.flatnonzero((result["motor"] == motor) & eligible)
@@ -127,8 +133,39 @@ def _longest_runs(result: TelemetryTable, healthy: NDArray[np.bool_], max_gap_s:
                 continue
             # persistence announces a state at an eligible sample of its run that comes at least the hold
             # after the run's first: a hold longer than the run's last sample never announces it
-            longest[code] = max(longest.get(code, 0.0), float(t[b - 1] - t[a]))
-    return longest
+            runs.setdefault(code, []).append(float(t[b - 1] - t[a]))
+    return runs
+
+
+def _tail_hold(durations: list[float], hours: float, rate_per_hour: float) -> float:
+    """The hold that runs as long as these would exceed at most ``rate_per_hour`` times per hour.
+
+    The runs' tail (the longest quarter, at least five) is taken as exponential beyond its threshold u:
+    runs longer than u come ``n_u/hours`` times per hour and their excess has mean μ, so runs longer
+    than ``u + μ·ln(n_u/(hours·rate))`` come ``rate`` times per hour. A short training set sees only
+    its own longest run; this extrapolates to the flight hours a fleet will fly."""
+    x = np.sort(np.asarray(durations, dtype=float))
+    n_tail = max(5, x.size // 4)
+    if x.size < 10 or hours <= 0:
+        return 0.0
+    u = float(x[-n_tail - 1])
+    excess = x[-n_tail:] - u
+    mu = float(np.mean(excess))
+    return float(max(0.0, u + mu * np.log(n_tail / (hours * rate_per_hour))))
+
+
+def _hold_line(points: list[tuple[float, float]], min_hold_s: float) -> tuple[float, float]:
+    """Hold ``h0 + slope·a`` over flights' (activity, needed hold): h0 what the calmest flights need
+    (activity within 1.5 × the lowest), the slope the smallest that covers every other flight."""
+    levels = np.array([a for a, _ in points])
+    need = np.array([h for _, h in points])
+    calm = levels <= 1.5 * levels.min()
+    h0 = max(min_hold_s, float(need[calm].max()))
+    rest = (levels > 0) & ~calm
+    slope = float(max(0.0, np.max((need[rest] - h0) / levels[rest]))) if rest.any() else 0.0
+    if not (levels > 0).any():
+        h0 = max(min_hold_s, float(need.max()))
+    return h0, slope
 
 
 def _false_events(result: TelemetryTable, healthy: NDArray[np.bool_]) -> int:
@@ -153,6 +190,7 @@ def tune_profile(
     min_hold_s: float = 0.1,
     name: str = "flight",
     max_rounds: int = 8,
+    false_rate_per_hour: float = 0.01,
 ) -> TuneResult:
     """Fit bands, stall split and persistence of ``base`` on labelled flights (see module doc)."""
     if not flights:
@@ -234,18 +272,34 @@ def tune_profile(
     rounds = []
     for _ in range(max_rounds):
         tuned = [diagnose(f.table, params, profile) for f in flights]
-        longest: dict[int, float] = {}
-        for r, (healthy, _) in zip(tuned, masks):
-            for code, dur in _longest_runs(r, healthy, profile.persistence.max_gap_s).items():
-                longest[code] = max(longest.get(code, 0.0), dur)
+        # per flight: its false runs and, from their tail, the hold that keeps them below the target rate
+        # in that flight's conditions (pooling a gusty flight with calm ones would dilute its rate)
+        needs: dict[int, list[tuple[float, float]]] = {}
+        for r, (healthy, _), flight in zip(tuned, masks, flights):
+            # the tail's rate stands for stationary healthy flight: a flight with a fault has its upset
+            # after the fault once, not once an hour, so there only the longest run counts
+            stationary = not flight.truth.get("faults")
+            flight_hours = float(np.ptp(r["time_s"])) / 3600.0 if len(r) and stationary else 0.0
+            activity = r.get("input_activity_v")
+            judged = healthy & r["steady"]
+            level = (
+                float(np.nanmedian(activity[judged]))
+                if fit_activity and activity is not None and judged.any()
+                else 0.0
+            )
+            for code, durations in _false_runs(r, healthy, profile.persistence.max_gap_s).items():
+                need = max(margin * max(durations), _tail_hold(durations, flight_hours, false_rate_per_hour))
+                needs.setdefault(code, []).append((level, need))
         # the base profile's holds are minimums (speed-only states, say, which labelled flights with a
         # trusted current never show)
         hold_by_label = dict(base.persistence.announce_s)
-        for code, dur in longest.items():
+        per_activity: dict[str, float] = {}
+        for code, points in needs.items():
             state_label = MotorState(code).label
-            hold_by_label[state_label] = max(
-                hold_by_label.get(state_label, 0.0), round(max(min_hold_s, margin * dur), 3)
-            )
+            hold, slope = _hold_line(points, min_hold_s)
+            hold_by_label[state_label] = max(hold_by_label.get(state_label, 0.0), round(hold, 3))
+            if slope > 0:
+                per_activity[state_label] = round(slope, 3)
         holds = tuple(sorted(hold_by_label.items()))
         profile = replace(
             profile,
@@ -254,6 +308,7 @@ def tune_profile(
                 clear_s=base.persistence.clear_s,
                 announce_s=holds,
                 max_gap_s=base.persistence.max_gap_s,
+                announce_per_activity_s=tuple(sorted(per_activity.items())),
             ),
         )
         checked = [diagnose(f.table, params, profile) for f in flights]

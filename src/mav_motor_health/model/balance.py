@@ -46,12 +46,16 @@ __all__ = ["ActivityCarry", "BalanceCarry", "BalanceResult", "balance_deviations
 
 FloatArray = NDArray[np.float64]
 
+#: the input activity falls this many times slower than it rises (see :func:`input_activity`)
+SLOW_FALL = 6.0
+
 
 @dataclass(frozen=True)
 class ActivityCarry:
     """The input activity's low-pass and the last input and change seen."""
 
     response: ResponseCarry = field(default_factory=ResponseCarry)
+    slow: ResponseCarry = field(default_factory=ResponseCarry)
     last_v: float = float("nan")
     last_dv: float = float("nan")
 
@@ -88,7 +92,9 @@ def input_activity(
     ``sqrt(low-pass of max(0, −ΔV_n·ΔV_(n−1)))`` with ΔV the change from one sample to the next: an input
     that goes up then down (or down then up) between three samples has moved faster than the samples
     show, and that is what makes the balances noisy. A manoeuvre's step or ramp (successive changes of
-    the same sign) adds nothing.
+    the same sign) adds nothing. The low-pass rises with ``tau_s`` and falls with ``SLOW_FALL × tau_s``
+    (the larger of a fast and a slow low-pass): a lull of a few seconds in gusty air does not narrow the
+    bands while the air is still gusty.
     """
     carry = carry or ActivityCarry()
     t = np.asarray(time_s, dtype=float)
@@ -100,10 +106,12 @@ def input_activity(
     prev_dv = np.concatenate([[carry.last_dv], dv[:-1]])
     zigzag = np.maximum(0.0, -dv * prev_dv)
     zigzag = np.where(np.isfinite(zigzag), zigzag, 0.0)
-    mean, response = first_order_response(t, zigzag, tau_s, carry.response)
+    fast, response = first_order_response(t, zigzag, tau_s, carry.response)
+    slow, slow_response = first_order_response(t, zigzag, SLOW_FALL * tau_s, carry.slow)
     last_v = float(v[-1]) if np.isfinite(v[-1]) else carry.last_v
     last_dv = float(dv[-1]) if np.isfinite(dv[-1]) else 0.0
-    return np.sqrt(np.maximum(mean, 0.0)), ActivityCarry(response=response, last_v=last_v, last_dv=last_dv)
+    activity = np.sqrt(np.maximum(np.maximum(fast, slow), 0.0))
+    return activity, ActivityCarry(response=response, slow=slow_response, last_v=last_v, last_dv=last_dv)
 
 
 def balance_deviations(
@@ -142,7 +150,7 @@ def balance_deviations(
     speed_balance = p.k_t * (v - p.k_e * w) - p.R_ohm * p.k_t * current_from_speed(p, w)
     v_mean, c_v = first_order_response(t, v, tau, carry.voltage)
     w_mean, c_w = first_order_response(t, w, tau, carry.omega)
-    i_mean, c_i = first_order_response(t, i, tau, carry.current)
+    i_mean, c_i = first_order_response(t, i, tau, carry.current)  # the stall current: every reading
     sb_mean, c_e = first_order_response(t, speed_balance, tau, carry.electrical)
     torque = p.k_t * (i - current_from_speed(p, w))
     rt_mean, c_m = first_order_response(t, torque, tau, carry.mechanical)

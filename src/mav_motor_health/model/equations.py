@@ -67,7 +67,9 @@ def steady_state(
     R, ke, Cp, k = params.R_ohm, params.k_e, params.C_p, params.k
     linear = params.B + ke * ke / R
     drive = ke * v / R - params.T_f  # −f(0): positive when the motor turns
-    turning = drive > 0
+    # the same test as start_voltage_v, so that a voltage at the start voltage itself (up to rounding of
+    # the two forms) stands still
+    turning = (drive > 0) & (v > params.start_voltage_v)
     omega = np.zeros_like(v)
     omega[np.isnan(v)] = np.nan
     if np.any(turning):
