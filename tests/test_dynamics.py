@@ -74,3 +74,30 @@ def test_undefined_start_recovers_at_the_first_finite_target() -> None:
     assert np.isnan(y).all()
     y2, _ = first_order_response(t[2:], [5.0, 5.0, 6.0, 6.0], 0.1, carry)
     assert y2[0] == 5.0 and y2[1] == 5.0 and 5.0 < y2[2] < 6.0
+
+
+def test_small_batches_follow_the_same_recurrence_as_whole_logs() -> None:
+    """The live agent's few-sample calls run the recurrence as a loop; it must match the block form."""
+    import mav_motor_health.model.dynamics as dyn
+
+    rng = np.random.default_rng(1)
+    for trial in range(100):
+        n = int(rng.integers(1, 40))
+        t = np.cumsum(rng.exponential(0.03, n))
+        t[rng.random(n) < 0.05] += 50.0  # gaps
+        x = rng.normal(0.0, 1.0, n)
+        x[rng.random(n) < 0.1] = np.nan  # lost samples
+        tau = np.where(rng.random(n) < 0.1, np.nan, rng.uniform(0.01, 1.0, n))
+        carry = (
+            dyn.ResponseCarry(time_s=t[0] - 0.02, input=0.3, output=0.1) if trial % 2 else dyn.ResponseCarry()
+        )
+        loop, _ = dyn._response_scalar(t, x, tau, carry)
+        # the block form, forced by padding past the loop's size with held (NaN) samples after the n
+        padded, _ = dyn.first_order_response(
+            np.append(t, t[-1] + 1.0 + np.arange(dyn._SCALAR_MAX)),
+            np.append(x, np.full(dyn._SCALAR_MAX, np.nan)),
+            np.append(tau, np.full(dyn._SCALAR_MAX, 1.0)),
+            carry,
+        )
+        block = padded[:n]
+        np.testing.assert_allclose(loop, block, rtol=1e-9, atol=1e-12)

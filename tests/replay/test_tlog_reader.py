@@ -22,8 +22,11 @@ def pymavlink_messages(sitl_tlog: Path) -> dict[str, list[Any]]:
     """Every used message as pymavlink decodes it (its CRC-checked mavutil loop)."""
     conn = mavutil.mavlink_connection(str(sitl_tlog), dialect="ardupilotmega")
     found: dict[str, list[Any]] = defaultdict(list)
-    while (msg := conn.recv_match(type=list(USED_MESSAGES))) is not None:
-        found[msg.get_type()].append(msg)
+    try:
+        while (msg := conn.recv_match(type=list(USED_MESSAGES))) is not None:
+            found[msg.get_type()].append(msg)
+    finally:
+        conn.close()
     return found
 
 

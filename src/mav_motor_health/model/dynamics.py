@@ -15,6 +15,7 @@ the live agent feeding one sample at a time gets the very same numbers.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -29,6 +30,9 @@ FloatArray = NDArray[np.float64]
 
 #: Sum of Δt/τ after which a block is closed (exp(−600) is still a normal float64).
 _BLOCK_DECAY = 600.0
+#: Up to this many samples (the live agent's small batches) the recurrence runs as a plain loop: numpy's
+#: per-call overhead would cost more than the arithmetic.
+_SCALAR_MAX = 16
 
 
 def time_constant_s(params: MotorParams, omega_rad_s: ArrayLike) -> FloatArray:
@@ -64,6 +68,8 @@ def first_order_response(
     n = t.size
     if n == 0:
         return np.zeros(0), carry
+    if n <= _SCALAR_MAX:
+        return _response_scalar(t, x, tau, carry)
     prev_t = np.concatenate([[carry.time_s], t[:-1]])
     prev_x = np.concatenate([[carry.input], x[:-1]])
     dt = np.clip(t - prev_t, 0.0, None)
@@ -100,6 +106,29 @@ def first_order_response(
         out[start:end] = block
         y0 = float(block[-1])
         start = end
+    last_input = x[-1] if np.isfinite(x[-1]) else carry.input
+    return out, ResponseCarry(time_s=float(t[-1]), input=float(last_input), output=float(out[-1]))
+
+
+def _response_scalar(
+    t: FloatArray, x: FloatArray, tau: FloatArray, carry: ResponseCarry
+) -> tuple[FloatArray, ResponseCarry]:
+    """:func:`first_order_response` for a few samples: the same recurrence, sample by sample."""
+    out = np.empty(t.size)
+    y, prev_t, prev_x = carry.output, carry.time_s, carry.input
+    for k, (tk, xk, tau_k) in enumerate(zip(t.tolist(), x.tolist(), tau.tolist())):
+        dt = max(tk - prev_t, 0.0) if math.isfinite(tk - prev_t) else math.inf
+        decay = dt / tau_k if math.isfinite(tau_k) and tau_k > 0 else math.inf
+        if not math.isfinite(xk):
+            pass  # a missing input: the output holds
+        elif not math.isfinite(decay) or decay >= _BLOCK_DECAY or not math.isfinite(y):
+            y = xk  # no lag (or no past): the target itself
+        else:
+            mean_in = 0.5 * (prev_x + xk) if math.isfinite(prev_x) else xk
+            a = math.exp(-decay)
+            y = a * y + (1.0 - a) * mean_in
+        out[k] = y
+        prev_t, prev_x = tk, xk
     last_input = x[-1] if np.isfinite(x[-1]) else carry.input
     return out, ResponseCarry(time_s=float(t[-1]), input=float(last_input), output=float(out[-1]))
 
