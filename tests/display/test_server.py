@@ -114,7 +114,13 @@ def test_cli_serves_until_interrupted(tmp_path: Path) -> None:
         cfg = json.loads(fetch(url.group(0) + "config.json")[2])
         assert cfg["topic_prefix"] == "lab" and cfg["broker_ws_url"] is None
         proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=10) == 130
+        try:
+            _, err = proc.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            _, err = proc.communicate()
+            pytest.fail(f"display did not stop on SIGINT within 30 s; its stderr:\n{err}")
+        assert proc.returncode == 130, err
     finally:
         if proc.poll() is None:
             proc.kill()
