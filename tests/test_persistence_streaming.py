@@ -92,3 +92,20 @@ def test_steady_carry_split() -> None:
     a, carry = steady_mask(rule, t[:123], v[:123], SteadyCarry())
     b, _ = steady_mask(rule, t[123:], v[123:], carry)
     np.testing.assert_array_equal(np.concatenate([a, b]), whole)
+
+
+def test_hold_grows_with_activity() -> None:
+    t = np.arange(0.0, 2.0, 0.02)
+    state = np.full(t.size, int(MotorState.F1_1), dtype=np.int8)
+    eligible = np.ones(t.size, dtype=bool)
+    holds = np.full(len(MotorState), 0.2)
+    slopes = np.zeros(len(MotorState))
+    slopes[MotorState.F1_1] = 0.5  # s per V
+    calm, _ = announce(holds, t, state, eligible, hold_per_activity_s=slopes, activity=np.full(t.size, 0.1))
+    gusty, _ = announce(holds, t, state, eligible, hold_per_activity_s=slopes, activity=np.full(t.size, 2.0))
+
+    def first(announced: np.ndarray) -> float:
+        return float(t[np.flatnonzero(announced == MotorState.F1_1)[0]])
+
+    assert abs(first(calm) - 0.26) < 0.011  # 0.2 + 0.5·0.1
+    assert abs(first(gusty) - 1.2) < 0.011  # 0.2 + 0.5·2.0

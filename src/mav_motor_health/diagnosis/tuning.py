@@ -187,7 +187,7 @@ def tune_profile(
     quantile: float = 0.99,
     margin: float = 1.5,
     voltage_bins: int = 6,
-    min_hold_s: float = 0.1,
+    min_hold_s: float = 0.05,
     name: str = "flight",
     max_rounds: int = 8,
     false_rate_per_hour: float = 0.01,
