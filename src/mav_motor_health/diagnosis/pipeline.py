@@ -88,7 +88,8 @@ def diagnose_motor(
     ESC input current), checked for plausibility; ``command`` the normalised motor command (0..1);
     ``extra_flags`` :class:`SensorIssue` flags found across motors (the currents' sum); ``context`` the
     samples' other columns (temperatures, altitude...), which a model with fitted effects
-    (``params.effects``) reads; the base model ignores it.
+    (``params.effects``) reads; the base model ignores it, and so does the balance rule, which checks the
+    base equations (a fitted effect's extra terms are not yet part of its balances).
     """
     carry = carry or MotorCarry()
     t = np.asarray(time_s, dtype=float)
