@@ -197,24 +197,28 @@ def _toml_string(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
 
 
-def _activity_band(raw: object, path: Path) -> tuple[tuple[float, float, float], ...]:
-    """``activity_band``: rows of [activity_v, speed_widening_rad_s, current_widening_a] (absent: none)."""
+def _number_rows(
+    raw: object, path: Path, key: str, width: int, expected: str
+) -> tuple[tuple[float, ...], ...] | None:
+    """A TOML list of rows of ``width`` numbers (``current_band_a``, ``activity_band``); None if absent."""
     if raw is None:
-        return ()
+        return None
     ok = isinstance(raw, list) and all(
         isinstance(row, list)
-        and len(row) == 3
+        and len(row) == width
         and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in row)
         for row in raw
     )
     if not ok:
-        raise ConfigError(
-            f"{raw!r}",
-            path=path,
-            key="profile.activity_band",
-            expected="a list of [activity_v, speed_widening_rad_s, current_widening_a] triples of numbers",
-        )
-    return tuple((float(a), float(w), float(i)) for a, w, i in raw)  # type: ignore[attr-defined]
+        raise ConfigError(f"{raw!r}", path=path, key=key, expected=expected)
+    return tuple(tuple(float(x) for x in row) for row in raw)  # type: ignore[attr-defined]
+
+
+def _label_numbers(section: _Section, unit: str) -> tuple[tuple[str, float], ...]:
+    """A table of state label = number ≥ 0 (``[persistence.announce_s]`` and its per-activity twin)."""
+    values = tuple((label, section.number(label, minimum=0.0, unit=unit)) for label in list(section.data))
+    section.done()
+    return values
 
 
 def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile:
@@ -227,42 +231,30 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
     plaus = top.table("plausibility")
     top.raw("source")
     top.done()
-    band_raw = p.raw("current_band_a")
-    if band_raw is None:
-        band: tuple[tuple[float, float], ...] = ((4.0, 0.25), (11.0, 2.5))
-    else:
-        ok = isinstance(band_raw, list) and all(
-            isinstance(pair, list)
-            and len(pair) == 2
-            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in pair)
-            for pair in band_raw
-        )
-        if not ok:
-            raise ConfigError(
-                f"{band_raw!r}",
-                path=path,
-                key="profile.current_band_a",
-                expected="a list of [voltage_v, halfwidth_a] pairs of numbers",
-            )
-        band = tuple((float(a), float(b)) for a, b in band_raw)
-    announce_section = pers.table("announce_s")
-    announce = tuple(
-        (label, announce_section.number(label, minimum=0.0, unit="s"))
-        for label in list(announce_section.data)
+    band = _number_rows(
+        p.raw("current_band_a"),
+        path,
+        "profile.current_band_a",
+        2,
+        "a list of [voltage_v, halfwidth_a] pairs of numbers",
     )
-    announce_section.done()
-    per_activity_section = pers.table("announce_per_activity_s")
-    per_activity = tuple(
-        (label, per_activity_section.number(label, minimum=0.0, unit="s per V"))
-        for label in list(per_activity_section.data)
+    if band is None:  # absent: the paper's band (an empty list is kept, and refused by the profile)
+        band = ((4.0, 0.25), (11.0, 2.5))
+    activity_band = _number_rows(
+        p.raw("activity_band"),
+        path,
+        "profile.activity_band",
+        3,
+        "a list of [activity_v, speed_widening_rad_s, current_widening_a] triples of numbers",
     )
-    per_activity_section.done()
+    announce = _label_numbers(pers.table("announce_s"), "s")
+    per_activity = _label_numbers(pers.table("announce_per_activity_s"), "s per V")
     try:
         profile = ThresholdProfile(
             name=p.text("name", path.stem),
             description=p.text("description", ""),
             speed_band_rad_s=p.number("speed_band_rad_s", 20.0, minimum=0.0, unit="rad/s"),
-            current_band_a=band,
+            current_band_a=band,  # type: ignore[arg-type]
             stop_speed_rad_s=p.number("stop_speed_rad_s", 100.0, minimum=0.0, unit="rad/s"),
             stall_split_a=p.number("stall_split_a", 6.0, minimum=0.0, unit="A"),
             stall_split_per_v=p.number("stall_split_per_v", 0.0, unit="A/V"),
@@ -271,7 +263,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             # 0 (or absent) means the default; the range is checked by ThresholdProfile
             free_speed_headroom_fraction=p.number("free_speed_headroom_fraction", 0.0) or 0.5,
             min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
-            activity_band=_activity_band(p.raw("activity_band"), path),
+            activity_band=activity_band or (),  # type: ignore[arg-type]
             steady=SteadyRule(
                 step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
                 settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),

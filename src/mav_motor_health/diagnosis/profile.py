@@ -207,19 +207,21 @@ class ThresholdProfile:
         ys = [p[1] for p in self.current_band_a]
         band = np.interp(v, xs, ys)
         if activity_v is not None and self.activity_band:
-            xs = [row[0] for row in self.activity_band]
-            band = band + np.interp(
-                np.nan_to_num(np.asarray(activity_v, dtype=float)), xs, [row[2] for row in self.activity_band]
-            )
+            band = band + self._widening(activity_v, 2)
         return band
 
     def speed_band(self, activity_v: ArrayLike | None = None) -> NDArray[np.float64] | float:
         """Half-width of the speed band [rad/s], widened by the input activity when given."""
         if activity_v is None or not self.activity_band:
             return self.speed_band_rad_s
+        return self.speed_band_rad_s + self._widening(activity_v, 1)
+
+    def _widening(self, activity_v: ArrayLike, column: int) -> NDArray[np.float64]:
+        """Column 1 (speed) or 2 (current) of ``activity_band`` at each activity (linear, held outside)."""
         a = np.nan_to_num(np.asarray(activity_v, dtype=float))
-        xs = [row[0] for row in self.activity_band]
-        return self.speed_band_rad_s + np.interp(a, xs, [row[1] for row in self.activity_band])
+        return np.interp(
+            a, [row[0] for row in self.activity_band], [row[column] for row in self.activity_band]
+        )
 
     def stall_split(self, bus_voltage_v: ArrayLike | None = None) -> NDArray[np.float64] | float:
         """The F2.1/F4.2 current split [A], scaled with bus voltage when ``stall_split_per_v`` is set."""

@@ -146,13 +146,14 @@ def balance_deviations(
     tau: FloatArray | float = tau_s
     if activity_ref_v > 0:
         tau = np.clip(tau_s * activity / activity_ref_v, tau_s, max(tau_s, tau_max_s))
+    load_a = current_from_speed(p, w)  # the current the load needs at the measured speed
     # Δω from the combination k_t·r_V + R·r_T, which has no current in it.
-    speed_balance = p.k_t * (v - p.k_e * w) - p.R_ohm * p.k_t * current_from_speed(p, w)
+    speed_balance = p.k_t * (v - p.k_e * w) - p.R_ohm * p.k_t * load_a
     v_mean, c_v = first_order_response(t, v, tau, carry.voltage)
     w_mean, c_w = first_order_response(t, w, tau, carry.omega)
     i_mean, c_i = first_order_response(t, i, tau, carry.current)  # the stall current: every reading
     sb_mean, c_e = first_order_response(t, speed_balance, tau, carry.electrical)
-    torque = p.k_t * (i - current_from_speed(p, w))
+    torque = p.k_t * (i - load_a)
     rt_mean, c_m = first_order_response(t, torque, tau, carry.mechanical)
     inertia = p.J_kg_m2 or 0.0
     accel_torque = inertia * (w - w_mean) / tau
