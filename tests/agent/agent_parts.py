@@ -109,9 +109,22 @@ class MqttListener:
         with self.lock:
             return [(t, p) for t, topic, p, _ in self.messages if topic.endswith(suffix) and p is not None]
 
+    def states(self) -> dict[int, str]:
+        """The latest state per motor on the ``.../state`` topics."""
+        return {p["motor"]: p["state"] for _, p in self.on("/state")}
+
+    def events(self, vehicle: str) -> list[tuple[int, str, str]]:
+        """(motor, previous, state) of every event of ``vehicle``, in arrival order."""
+        return [(p["motor"], p["previous"], p["state"]) for _, p in self.on(f"{vehicle}/events")]
+
     def close(self) -> None:
         self.client.loop_stop()
         self.client.disconnect()
+
+
+def agent_events(agent: Any) -> list[tuple[int, str, str]]:
+    """(motor, previous, state) of every state change the agent announced, in order."""
+    return [(c.motor, c.previous.label, c.state.label) for c in agent.changes]
 
 
 def start_mavproxy(workdir: Path, master_port: int, out_port: int, log: Any) -> subprocess.Popen:

@@ -11,7 +11,7 @@ import subprocess
 import sys
 from typing import Any
 
-from agent_parts import REPO, MqttListener, until, wait_for
+from agent_parts import REPO, MqttListener, agent_events, until, wait_for
 from vehicle_peer import VehiclePeer
 
 from mav_motor_health.agent import Agent, load_agent_config
@@ -38,24 +38,9 @@ def gcs_up(gcs) -> bool:
     return any(m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1 for _, m in list(gcs.received))
 
 
-def latest_states(listener: MqttListener) -> dict[int, str]:
-    states = {}
-    for _, payload in listener.on("/state"):
-        states[payload["motor"]] = payload["state"]
-    return states
-
-
 def all_normal(listener: MqttListener) -> bool:
-    states = latest_states(listener)
+    states = listener.states()
     return len(states) == 6 and set(states.values()) == {"NORMAL"}
-
-
-def mqtt_events(listener: MqttListener) -> list[tuple[int, str, str]]:
-    return [(p["motor"], p["previous"], p["state"]) for _, p in listener.on(f"{VEHICLE}/events")]
-
-
-def agent_events(agent: Agent) -> list[tuple[int, str, str]]:
-    return [(c.motor, c.previous.label, c.state.label) for c in agent.changes]
 
 
 def test_fault_is_announced_over_mavlink_and_mqtt_within_a_second(paper_motor, broker, mavproxy):
@@ -165,26 +150,24 @@ def test_link_loss_reboot_and_silent_esc_lose_no_state_change(paper_motor, broke
                 await until(lambda: gcs_up(mavproxy), 30, "MAVProxy forwarding the vehicle")
                 # one ESC goes silent: ArduPilot repeats its values with a frozen count
                 peer.silent.add(6)
-                await until(lambda: latest_states(listener).get(6) == "NO_DATA", 5, "motor 6 NO_DATA")
+                await until(lambda: listener.states().get(6) == "NO_DATA", 5, "motor 6 NO_DATA")
                 await until(
                     lambda: any(t == "Motor 6: no ESC telemetry" for _, _, t in mavproxy.texts()),
                     5,
                     "silence told",
                 )
                 peer.silent.discard(6)
-                await until(lambda: latest_states(listener).get(6) == "NORMAL", 5, "motor 6 back")
+                await until(lambda: listener.states().get(6) == "NORMAL", 5, "motor 6 back")
 
                 # the link drops; the autopilot reboots meanwhile (forgets the streams) and a motor fails
                 peer.link_up = False
                 await until(lambda: not agent.tracker.up, 10, "the agent noticing the lost autopilot")
-                await until(
-                    lambda: set(latest_states(listener).values()) == {"NO_DATA"}, 5, "all motors NO_DATA"
-                )
+                await until(lambda: set(listener.states().values()) == {"NO_DATA"}, 5, "all motors NO_DATA")
                 peer.reboot()
                 peer.inject(2, "F2.1")
                 peer.link_up = True
                 await until(
-                    lambda: latest_states(listener).get(2) == "F2.1",
+                    lambda: listener.states().get(2) == "F2.1",
                     15,
                     "motor 2 F2.1 after the link returns",
                 )
@@ -198,10 +181,10 @@ def test_link_loss_reboot_and_silent_esc_lose_no_state_change(paper_motor, broke
                 assert agent.tracker.losses >= 1
                 # every change the agent made is on MQTT, in order
                 await until(
-                    lambda: mqtt_events(listener) == agent_events(agent),
+                    lambda: listener.events(VEHICLE) == agent_events(agent),
                     5,
                     "MQTT events = agent changes",
-                    lambda: (mqtt_events(listener), agent_events(agent)),
+                    lambda: (listener.events(VEHICLE), agent_events(agent)),
                 )
                 assert (6, "NORMAL", "NO_DATA") in agent_events(agent)
                 assert (2, "NO_DATA", "F2.1") in agent_events(agent) or (2, "NORMAL", "F2.1") in agent_events(
@@ -215,7 +198,7 @@ def test_link_loss_reboot_and_silent_esc_lose_no_state_change(paper_motor, broke
                 await until(
                     lambda: any(t == "ESC telemetry lost" for _, _, t in mavproxy.texts()), 8, "ESC lost told"
                 )
-                await until(lambda: latest_states(listener).get(1) == "NORMAL", 10, "streams requested again")
+                await until(lambda: listener.states().get(1) == "NORMAL", 10, "streams requested again")
 
     try:
         asyncio.run(main())
@@ -232,7 +215,7 @@ def test_broker_restart_mid_flight_loses_no_state_change(paper_motor, broker):
             async with Agent(config) as agent:
                 await until(lambda: all_normal(listener), 30, "six motors NORMAL")
                 await until(
-                    lambda: mqtt_events(listener) == agent_events(agent),
+                    lambda: listener.events(VEHICLE) == agent_events(agent),
                     10,
                     "events delivered before the stop",
                 )
@@ -256,19 +239,17 @@ def test_broker_restart_mid_flight_loses_no_state_change(paper_motor, broker):
                 await asyncio.get_running_loop().run_in_executor(None, broker.start)
                 await until(lambda: agent.mqtt.connections > connections, 20, "the agent reconnecting")
                 await until(
-                    lambda: mqtt_events(listener) == agent_events(agent),
+                    lambda: listener.events(VEHICLE) == agent_events(agent),
                     20,
                     "every change on MQTT, in order",
                     lambda: (
-                        mqtt_events(listener),
+                        listener.events(VEHICLE),
                         agent_events(agent),
                         agent.mqtt.connections,
                         len(agent.mqtt.outbox),
                     ),
                 )
-                await until(
-                    lambda: latest_states(listener).get(1) == "F4.2", 5, "retained state after the restart"
-                )
+                await until(lambda: listener.states().get(1) == "F4.2", 5, "retained state after the restart")
 
     try:
         asyncio.run(main())

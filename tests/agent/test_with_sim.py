@@ -12,7 +12,7 @@ import threading
 import time
 
 import pytest
-from agent_parts import MqttListener, free_port, until
+from agent_parts import MqttListener, agent_events, free_port, until
 
 from mav_motor_health.agent import Agent, load_agent_config
 from mav_motor_health.diagnosis.states import MotorState
@@ -63,26 +63,11 @@ class UdpRelay:
         self.sock.close()
 
 
-def states(listener: MqttListener) -> dict[int, str]:
-    out = {}
-    for _, p in listener.on("/state"):
-        out[p["motor"]] = p["state"]
-    return out
-
-
 def all_reporting(listener: MqttListener) -> bool:
     """Six motors with a state other than NO_DATA (the untuned flight profile may name faults in a
     healthy simulated flight, so the tests do not wait for six NORMALs)."""
-    st = states(listener)
+    st = listener.states()
     return len(st) == 6 and "NO_DATA" not in st.values()
-
-
-def mqtt_events(listener: MqttListener) -> list[tuple[int, str, str]]:
-    return [(p["motor"], p["previous"], p["state"]) for _, p in listener.on(f"{VEHICLE}/events")]
-
-
-def agent_events(agent: Agent) -> list[tuple[int, str, str]]:
-    return [(c.motor, c.previous.label, c.state.label) for c in agent.changes]
 
 
 def texts_at_vehicle(vehicle: SimVehicle) -> list[tuple[float, str]]:
@@ -186,18 +171,18 @@ def test_sim_link_cut_and_broker_restart_lose_no_state_change(broker, agent_port
                     30,
                     "six motors reporting",
                 )
-                await until(lambda: mqtt_events(listener) == agent_events(agent), 10, "events delivered")
+                await until(lambda: listener.events(VEHICLE) == agent_events(agent), 10, "events delivered")
 
                 # the MAVLink link is cut; a motor fails meanwhile; the link comes back
                 relay.up = False
                 await until(
-                    lambda: set(states(listener).values()) == {"NO_DATA"}, 10, "all NO_DATA while cut"
+                    lambda: set(listener.states().values()) == {"NO_DATA"}, 10, "all NO_DATA while cut"
                 )
                 await until(lambda: not agent.tracker.up, 10, "autopilot lost")
                 vehicle.inject("F4.2", 5)
                 relay.up = True
                 await until(
-                    lambda: states(listener).get(5) == "F4.2", 15, "motor 5 F4.2 after the link returns"
+                    lambda: listener.states().get(5) == "F4.2", 15, "motor 5 F4.2 after the link returns"
                 )
                 await until(lambda: all_reporting(listener), 10, "the others reporting again")
 
@@ -215,15 +200,15 @@ def test_sim_link_cut_and_broker_restart_lose_no_state_change(broker, agent_port
                 )
                 await loop.run_in_executor(None, broker.start)
                 await until(
-                    lambda: mqtt_events(listener) == agent_events(agent),
+                    lambda: listener.events(VEHICLE) == agent_events(agent),
                     20,
                     "every state change on MQTT, in order",
-                    lambda: (mqtt_events(listener)[-6:], agent_events(agent)[-6:]),
+                    lambda: (listener.events(VEHICLE)[-6:], agent_events(agent)[-6:]),
                 )
                 assert any(e[0] == 5 and e[2] == "NO_DATA" for e in agent_events(agent))
                 assert any(e[0] == 5 and e[2] == "F4.2" for e in agent_events(agent))
                 assert any(e[0] == 3 and e[2] == "F2.1" for e in agent_events(agent))
-                await until(lambda: states(listener).get(3) == "F2.1", 5, "retained state after the restart")
+                await until(lambda: listener.states().get(3) == "F2.1", 5, "retained state after the restart")
                 # the vehicle heard about both faults
                 await until(
                     lambda: (
@@ -257,7 +242,7 @@ def test_sim_behind_mavproxy_as_router(broker, mavproxy_router):
                     "six motors reporting",
                 )
                 vehicle.inject("F4.2", 6)
-                await until(lambda: states(listener).get(6) == "F4.2", 10, "F4.2 over MQTT")
+                await until(lambda: listener.states().get(6) == "F4.2", 10, "F4.2 over MQTT")
                 await until(
                     lambda: any(
                         t == "Motor 6: back-EMF signal error (F4.2)" for _, t in texts_at_vehicle(vehicle)
