@@ -20,6 +20,8 @@ from typing import Any
 import paho.mqtt.client as paho
 import pytest
 
+from mav_motor_health.publish.mqtt import EventDedupe
+
 MOSQUITTO = "/usr/sbin/mosquitto"
 MAVPROXY = str(Path(sys.executable).parent / "mavproxy.py")
 REPO = Path(__file__).resolve().parents[2]
@@ -113,9 +115,15 @@ class MqttListener:
         """The latest state per motor on the ``.../state`` topics."""
         return {p["motor"]: p["state"] for _, p in self.on("/state")}
 
+    def event_payloads(self, vehicle: str) -> list[dict[str, Any]]:
+        """Every event of ``vehicle`` in arrival order, repeats dropped as a consumer does: QoS 1 delivers
+        at least once, and after a broker restart one event can arrive twice (same run_id and seq)."""
+        dedupe = EventDedupe()
+        return [p for _, p in self.on(f"{vehicle}/events") if dedupe.accept(p)]
+
     def events(self, vehicle: str) -> list[tuple[int, str, str]]:
-        """(motor, previous, state) of every event of ``vehicle``, in arrival order."""
-        return [(p["motor"], p["previous"], p["state"]) for _, p in self.on(f"{vehicle}/events")]
+        """(motor, previous, state) of every event of ``vehicle``, in arrival order, without repeats."""
+        return [(p["motor"], p["previous"], p["state"]) for p in self.event_payloads(vehicle)]
 
     def close(self) -> None:
         self.client.loop_stop()

@@ -250,6 +250,14 @@ def test_broker_restart_mid_flight_loses_no_state_change(paper_motor, broker):
                     ),
                 )
                 await until(lambda: listener.states().get(1) == "F4.2", 5, "retained state after the restart")
+                # every event of this run numbered 1, 2, 3... across the motors, whatever the broker did
+                # (the listener's events() dropped repeats by (run_id, seq)); anything that came twice
+                # was the very same event
+                kept = listener.event_payloads(VEHICLE)
+                assert [p["seq"] for p in kept] == list(range(1, len(agent.changes) + 1))
+                assert {p["run_id"] for p in kept} == {agent.mqtt.run_id}
+                by_seq = {p["seq"]: p for p in kept}
+                assert all(p == by_seq[p["seq"]] for _, p in listener.on(f"{VEHICLE}/events"))
 
     try:
         asyncio.run(main())

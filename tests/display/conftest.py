@@ -239,6 +239,8 @@ class AgentLike:
         self.rng = np.random.default_rng(seed)
         self.faults: dict[int, str] = {}
         self.states: dict[int, str] = {}
+        self.run_id = f"run-{vehicle}-{seed}"
+        self.seq = 0  # the last event's
 
     def announce(self, motors: int = 6) -> None:
         self.pub.publish(
@@ -287,31 +289,33 @@ class AgentLike:
         )
         return previous
 
-    def event(self, motor: int, label: str, previous: str, t_s: float, ago_s: float = 0.0) -> None:
-        """A state change, its evidence computed as the telemetry is (same model, same fault)."""
+    def event(self, motor: int, label: str, previous: str, t_s: float, ago_s: float = 0.0) -> dict[str, Any]:
+        """A state change, its evidence computed as the telemetry is (same model, same fault), numbered
+        with the run's next ``seq``; returns the payload (to publish it again as QoS 1 may)."""
         from mav_motor_health.model.equations import steady_state
         from mav_motor_health.sim.steady import faulty_steady_state
 
         voltage = self.flight_voltage(t_s) + 0.1 * motor
         model = steady_state(self.params, voltage)
         omega, current = faulty_steady_state(self.params, self.faults.get(motor, "NORMAL"), voltage)
-        self.pub.publish(
-            f"{self.base}/events",
-            {
-                "time_utc": utc(time.time() - ago_s),
-                "t_s": t_s,
-                "motor": motor,
-                "state": label,
-                "previous": previous,
-                "evidence": {
-                    "omega_rad_s": float(omega),
-                    "omega_model_rad_s": float(model.omega_rad_s),
-                    "current_a": float(current),
-                    "current_model_a": float(model.current_a),
-                },
+        self.seq += 1
+        payload = {
+            "time_utc": utc(time.time() - ago_s),
+            "t_s": t_s,
+            "motor": motor,
+            "state": label,
+            "previous": previous,
+            "evidence": {
+                "omega_rad_s": float(omega),
+                "omega_model_rad_s": float(model.omega_rad_s),
+                "current_a": float(current),
+                "current_model_a": float(model.current_a),
             },
-            qos=1,
-        )
+            "run_id": self.run_id,
+            "seq": self.seq,
+        }
+        self.pub.publish(f"{self.base}/events", payload, qos=1)
+        return payload
 
     def telemetry(
         self, motor: int, t_s: float, voltage_v: float, model: tuple[float, float] | None = None

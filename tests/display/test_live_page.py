@@ -93,6 +93,28 @@ def test_motor_4_fault_changes_colour_and_is_named(
     assert painted > 20
 
 
+def test_event_log_shows_an_event_delivered_twice_once(
+    page: Any, display: Any, agent_like: Any, open_display: Any
+) -> None:
+    """QoS 1 may deliver an event twice (same run_id and seq): the log shows it once. A restarted agent
+    (new run_id, seq from 1 again) is news, not a repeat."""
+    server = display()
+    open_display(page, server)
+    uav = agent_like("twice")
+    healthy_vehicle(uav)
+    first = uav.event(4, "F3.1", "NORMAL", t_s=11.2)
+    uav.pub.publish(f"{uav.base}/events", first, qos=1)  # the same event again, as after a broker restart
+    uav.event(4, "NORMAL", "F3.1", t_s=12.0)
+    uav.run_id, uav.seq = "run-twice-restarted", 0
+    uav.event(2, "F1.1", "NORMAL", t_s=0.5)
+    rows = page.locator("#event-log tbody tr")
+    page.wait_for_function("() => document.querySelectorAll('#event-log tbody tr').length >= 3")
+    page.wait_for_timeout(300)  # a fourth row would be drawn by now
+    assert rows.count() == 3, page.locator("#event-log").inner_text()
+    log = page.locator("#event-log").inner_text()
+    assert log.count("NORMAL → F3.1") == 1 and "F3.1 → NORMAL" in log and "NORMAL → F1.1" in log
+
+
 def test_retained_state_reaches_a_late_viewer(
     page: Any, display: Any, agent_like: Any, open_display: Any
 ) -> None:

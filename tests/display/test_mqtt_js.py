@@ -59,3 +59,24 @@ def test_parser_reassembles_the_byte_stream(page: Any, chunking: str) -> None:
     # QoS 1 deliveries acknowledged with their packet ids (PUBACK), nothing else sent (never a PUBLISH)
     assert out["sent"] == [[0x40, 2, 0, 7], [0x40, 2, 1, 44]]
     assert out["buffered"] == 0
+
+
+def test_event_dedupe_in_the_page_follows_the_python_rules(page: Any) -> None:
+    """MmhEventDedupe (the display's) decides as EventDedupe (the package's) on the same stream: repeats,
+    a restarted agent's new run_id, late events within and beyond the window, events without a seq."""
+    from mav_motor_health.publish.mqtt import EventDedupe
+
+    stream: list[dict[str, Any]] = [{"run_id": "a", "seq": s} for s in (1, 2, 2, 5, 3, 3, 1, 9, 4, 5, 10)]
+    stream += [{"run_id": "b", "seq": 1}, {"run_id": "a", "seq": 10}, {"run_id": "b", "seq": 1}]
+    stream += [{"motor": 1}, {"motor": 1}, {"run_id": "a", "seq": 2.5}, {"run_id": "", "seq": 1}]
+    stream += [{"run_id": "c", "seq": 1}, {"run_id": "a", "seq": 10}, {"run_id": "b", "seq": 2}]
+    stream += [{"run_id": "d", "seq": s} for s in (*range(1, 30), 20, 21, 22, 28)]
+    python = EventDedupe(window=4, runs=2)
+    expected = [python.accept(e) for e in stream]
+    page.set_content("<!doctype html><html><body></body></html>")
+    page.add_script_tag(content=static_text("mqtt.js"))
+    got = page.evaluate(
+        "(stream) => { const d = new MmhEventDedupe(4, 2); return stream.map((e) => d.accept(e)); }", stream
+    )
+    assert got == expected
+    assert expected.count(False) >= 8  # the stream does exercise the drops

@@ -2,9 +2,10 @@
 dialect; MQTT; the web display)."""
 
 from .mavlink_health import StatustextGate, TokenBucket, severity_for, statustext_for
-from .mqtt import MqttPublisher, MqttSettings, Outbox, parse_mqtt_url
+from .mqtt import EventDedupe, MqttPublisher, MqttSettings, Outbox, parse_mqtt_url
 
 __all__ = [
+    "EventDedupe",
     "MqttPublisher",
     "MqttSettings",
     "Outbox",

@@ -2,7 +2,7 @@
 
 Topics under ``<prefix>/<vehicle>/``: ``status`` and ``info`` (retained), ``motor/<n>/state`` (retained),
 ``motor/<n>/telemetry`` (QoS 0, not retained) and ``events`` (QoS 1). The last will publishes
-``{"online": false}`` retained on ``status``.
+``{"online": false, "run_id": ...}`` retained on ``status``.
 
 :class:`MqttPublisher` is an async context manager that owns one connection task in a ``TaskGroup``
 (cancelled on exit). Callers never wait for the broker: ``state``, ``event`` and ``telemetry`` put a
@@ -12,6 +12,10 @@ dropped while there is room), then telemetry (a short queue whose oldest entries
 which gives up its room to events when the outbox is full). After every (re)connect all retained topics are
 published again, so a broker that restarted without persistence is whole again. A message leaves the
 outbox only once the broker acknowledged it (QoS 1): delivery is at-least-once.
+
+At-least-once means a consumer can get one event twice (a PUBACK lost in a broker restart: the event goes
+out again). So every event carries ``run_id`` (one per publisher, i.e. per agent run) and ``seq`` (1, 2, 3...
+within the run), and :class:`EventDedupe` drops what a consumer has seen already by that pair.
 """
 
 from __future__ import annotations
@@ -21,9 +25,11 @@ import contextlib
 import json
 import logging
 import math
+import secrets
 import ssl
 from collections import deque
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import Any
 from urllib.parse import unquote, urlsplit
@@ -33,7 +39,16 @@ import aiomqtt
 from .._aio import TaskGroup
 from ..errors import ConfigError
 
-__all__ = ["MqttPublisher", "MqttSettings", "Outbox", "parse_mqtt_url", "utc_now"]
+__all__ = [
+    "EventDedupe",
+    "MqttPublisher",
+    "MqttSettings",
+    "Outbox",
+    "event_key",
+    "new_run_id",
+    "parse_mqtt_url",
+    "utc_now",
+]
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +56,13 @@ log = logging.getLogger(__name__)
 def utc_now() -> str:
     """ISO 8601 UTC time with ``Z``, millisecond resolution."""
     return datetime.now(timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def new_run_id() -> str:
+    """An id for one agent run: its start time (UTC, readable in a log) and 32 random bits (two agents
+    started in the same second differ). ``seq`` starts at 1 again in every run; the id is how a consumer
+    tells a restarted agent's low ``seq`` from an old event delivered again."""
+    return f"{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{secrets.token_hex(4)}"
 
 
 def _clean(value: Any) -> Any:
@@ -198,12 +220,84 @@ class Outbox:
             self.telemetry.popleft()
 
 
-class MqttPublisher:
-    """Publishes the agent's topics; ``async with MqttPublisher(settings) as mqtt: mqtt.state(...)``."""
+def event_key(payload: Mapping[str, Any]) -> tuple[str, int] | None:
+    """An event's ``(run_id, seq)``, or None when it has none (an agent from before they existed)."""
+    run_id, seq = payload.get("run_id"), payload.get("seq")
+    if not isinstance(run_id, str) or not run_id or not isinstance(seq, int) or isinstance(seq, bool):
+        return None
+    return run_id, seq
 
-    def __init__(self, settings: MqttSettings, agent_name: str = "mav-motor-health") -> None:
+
+@dataclass
+class _RunSeen:
+    """The ``seq`` numbers seen of one run: the highest, and every one within the window below it."""
+
+    highest: int = 0
+    seqs: set[int] = field(default_factory=set)
+
+
+class EventDedupe:
+    """Drops events a consumer has seen already, by ``(run_id, seq)``: ``if dedupe.accept(payload): ...``.
+
+    Events go out at QoS 1, delivered at least once: after a broker restart the same event can arrive
+    twice, with the same ``run_id`` and ``seq``. A new ``run_id`` is a restarted agent, whose ``seq``
+    starts at 1 again: accepted, not taken for repeats.
+
+    Out of order: a ``seq`` not seen before is accepted even below the highest one seen (a late delivery
+    is news, not a repeat; the agent sends in order, but a bridge or a second subscription may not keep
+    it), as long as it is one of the ``window`` numbers up to the highest (``seq > highest - window``);
+    further back it is dropped, because the record of which ones came there is gone. A gap (``seq`` jumping) is accepted: it means events were
+    lost (the agent's outbox was full), not repeated. Payloads without ``run_id``/``seq`` are always
+    accepted: nothing tells a repeat of them. The ``runs`` most recently heard runs are remembered.
+    The display's page has the same rules in JavaScript (``MmhEventDedupe`` in ``web/static/mqtt.js``).
+    """
+
+    def __init__(self, window: int = 1024, runs: int = 64) -> None:
+        self.window = window
+        self.runs = runs
+        self.dropped = 0  #: repeats dropped so far
+        self._seen: dict[str, _RunSeen] = {}  # least recently heard run first
+
+    def accept(self, payload: Mapping[str, Any]) -> bool:
+        """True the first time an event is seen (pass it on), False for a repeat (drop it)."""
+        key = event_key(payload)
+        if key is None:
+            return True
+        run_id, seq = key
+        seen = self._run(run_id)
+        if seq in seen.seqs or seq <= seen.highest - self.window:
+            self.dropped += 1
+            return False
+        seen.seqs.add(seq)
+        if seq > seen.highest:
+            seen.highest = seq
+            if len(seen.seqs) > 2 * self.window:  # forget the ones out of the window, now and then
+                seen.seqs = {s for s in seen.seqs if s > seq - self.window}
+        return True
+
+    def _run(self, run_id: str) -> _RunSeen:
+        """The run's record, now the most recently heard; the least recent one forgotten past ``runs``."""
+        seen = self._seen.pop(run_id, None) or _RunSeen()
+        self._seen[run_id] = seen
+        if len(self._seen) > self.runs:
+            del self._seen[next(iter(self._seen))]
+        return seen
+
+
+class MqttPublisher:
+    """Publishes the agent's topics; ``async with MqttPublisher(settings) as mqtt: mqtt.state(...)``.
+
+    ``run_id`` names this run in every event and in ``status`` (a fresh :func:`new_run_id` by default);
+    ``event_seq`` is the ``seq`` of the last event queued.
+    """
+
+    def __init__(
+        self, settings: MqttSettings, agent_name: str = "mav-motor-health", run_id: str | None = None
+    ) -> None:
         self.settings = settings
         self.agent_name = agent_name
+        self.run_id = run_id or new_run_id()
+        self.event_seq = 0
         self.outbox = Outbox(settings.queue_limit, settings.telemetry_limit)
         self.connected = asyncio.Event()
         self.connections = 0  #: successful connections so far
@@ -221,7 +315,11 @@ class MqttPublisher:
         self.outbox.put_retained(self.settings.topic("motor", motor, "state"), dumps(payload))
 
     def event(self, payload: dict[str, Any]) -> None:
-        self.outbox.put_event(self.settings.topic("events"), dumps(payload))
+        """Queue an event numbered with this run's next ``seq``: QoS 1 may deliver it twice, and
+        ``(run_id, seq)`` is what lets a consumer drop the repeat (:class:`EventDedupe`)."""
+        self.event_seq += 1
+        stamped = {**payload, "run_id": self.run_id, "seq": self.event_seq}
+        self.outbox.put_event(self.settings.topic("events"), dumps(stamped))
 
     def telemetry(self, motor: int, payload: dict[str, Any]) -> None:
         self.outbox.put_telemetry(self.settings.topic("motor", motor, "telemetry"), dumps(payload))
@@ -264,8 +362,8 @@ class MqttPublisher:
 
     def _status(self, online: bool) -> bytes:
         if not online:
-            return dumps({"online": False, "time_utc": utc_now()})
-        return dumps({"online": True, "time_utc": utc_now(), "agent": self.agent_name})
+            return dumps({"online": False, "time_utc": utc_now(), "run_id": self.run_id})
+        return dumps({"online": True, "time_utc": utc_now(), "agent": self.agent_name, "run_id": self.run_id})
 
     def _client_kwargs(self) -> dict[str, Any]:
         s = self.settings
@@ -277,7 +375,9 @@ class MqttPublisher:
             "identifier": s.client_id,
             "keepalive": s.keepalive_s,
             "timeout": 10.0,
-            "will": aiomqtt.Will(s.topic("status"), dumps({"online": False}), qos=1, retain=True),
+            "will": aiomqtt.Will(
+                s.topic("status"), dumps({"online": False, "run_id": self.run_id}), qos=1, retain=True
+            ),
         }
         if s.tls or s.ca_file:
             context = ssl.create_default_context(cafile=s.ca_file)

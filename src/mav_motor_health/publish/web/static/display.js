@@ -17,7 +17,8 @@
   }
 
   function newVehicle(id) {
-    return {id: id, status: null, info: null, lastLiveMs: null, events: [], motors: new Map()};
+    // dedupe: QoS 1 may deliver an event twice (after a broker restart); the log shows it once
+    return {id: id, status: null, info: null, lastLiveMs: null, events: [], dedupe: new MmhEventDedupe(), motors: new Map()};
   }
 
   function newMotor() {
@@ -161,6 +162,9 @@
       } else if (kind === "info") {
         v.info = msg;
       } else if (kind === "events") {
+        if (!v.dedupe.accept(msg)) {
+          return;
+        }
         v.events.unshift(msg);
         v.events.length = Math.min(v.events.length, 200);
       } else if (parts[1] === "motor" && parts.length === 4) {

@@ -6,6 +6,11 @@
  *   const client = new MmhMqttSubscriber(url, {topics: ["mmh/#"], onMessage, onStatus});
  *   client.start();           // connects, and reconnects until stop()
  *   client.setCredentials("viewer", "secret");   // reconnects with them
+ *
+ * And MmhEventDedupe, which drops an event seen already: QoS 1 delivers at least once.
+ *
+ *   const dedupe = new MmhEventDedupe();
+ *   if (dedupe.accept(event)) { ... }   // false for a repeat of the same (run_id, seq)
  */
 (function (global) {
   "use strict";
@@ -314,5 +319,53 @@
     }
   }
 
+  /* Drops events seen already, by (run_id, seq). The agent publishes events at QoS 1, delivered at least
+   * once: after a broker restart the same event can come twice. A new run_id is a restarted agent whose
+   * seq starts at 1 again. The rules are mav_motor_health.publish.mqtt.EventDedupe's (read its docstring):
+   * a seq not seen is accepted even below the highest, within `window` of it; further back it is dropped;
+   * an event without run_id/seq is always accepted; the `runs` most recently heard runs are remembered. */
+  class MmhEventDedupe {
+    constructor(windowSize, runs) {
+      this.window = windowSize || 1024;
+      this.runs = runs || 64;
+      this.dropped = 0;
+      this.seen = new Map(); // run_id → {highest, seqs}, least recently heard first
+    }
+
+    /* True the first time an event is seen (show it), false for a repeat (drop it). */
+    accept(event) {
+      const runId = event ? event.run_id : undefined;
+      const seq = event ? event.seq : undefined;
+      if (typeof runId !== "string" || !runId || !Number.isInteger(seq)) {
+        return true;
+      }
+      const run = this.run(runId);
+      if (run.seqs.has(seq) || seq <= run.highest - this.window) {
+        this.dropped += 1;
+        return false;
+      }
+      run.seqs.add(seq);
+      if (seq > run.highest) {
+        run.highest = seq;
+        if (run.seqs.size > 2 * this.window) {
+          run.seqs = new Set([...run.seqs].filter((s) => s > seq - this.window));
+        }
+      }
+      return true;
+    }
+
+    /* The run's record, now the most recently heard; the least recent one forgotten past `runs`. */
+    run(runId) {
+      const run = this.seen.get(runId) || {highest: 0, seqs: new Set()};
+      this.seen.delete(runId);
+      this.seen.set(runId, run);
+      if (this.seen.size > this.runs) {
+        this.seen.delete(this.seen.keys().next().value);
+      }
+      return run;
+    }
+  }
+
   global.MmhMqttSubscriber = MmhMqttSubscriber;
+  global.MmhEventDedupe = MmhEventDedupe;
 })(window);
