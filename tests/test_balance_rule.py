@@ -12,7 +12,7 @@ from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.diagnosis.steady import warm_mask
 from mav_motor_health.diagnosis.tuning import _activity_band
 from mav_motor_health.evaluation.campaign import FlightCase, run_flights
-from mav_motor_health.model.balance import balance_deviations, input_activity
+from mav_motor_health.model.balance import balance_deviations, censored_mean, input_activity
 from mav_motor_health.model.equations import steady_state
 
 
@@ -162,3 +162,61 @@ def test_activity_band_covers_every_bin() -> None:
         at = float(np.quantile(activity[sel], 0.9))
         assert base_w + np.interp(at, xs, [r[1] for r in rows]) >= 0.999 * 1.5 * np.quantile(res_w[sel], 0.99)
         assert base_i + np.interp(at, xs, [r[2] for r in rows]) >= 0.999 * 1.5 * np.quantile(res_i[sel], 0.99)
+
+
+def test_censored_mean_recovers_the_mean_of_a_current_read_unsigned() -> None:
+    rng = np.random.default_rng(11)
+    for mu, sigma in ((6.0, 1.0), (2.0, 3.0), (0.5, 2.0), (-0.5, 1.0)):
+        x = rng.normal(mu, sigma, 200_000)
+        readings = np.maximum(x, 0.0)  # the ESC reports a braking motor's current as 0
+        share = np.mean(readings == 0.0)
+        naive = readings.mean()
+        corrected = float(censored_mean(naive, share))
+        assert corrected == pytest.approx(mu, abs=0.03), (mu, sigma)
+        if share > 0.05:
+            assert abs(naive - mu) > 5 * abs(corrected - mu)  # the correction is what brings it back
+    # no zeros: the readings' mean as it is; NaN stays NaN
+    assert float(censored_mean(4.2, 0.0)) == 4.2
+    assert np.isnan(censored_mean(np.nan, np.nan))
+
+
+def test_unsigned_current_does_not_bias_the_current_deviation_in_gusty_air(motor) -> None:
+    """In gusty air about one ESC current reading in six is a braking motor's zero; the balance rule
+    must not read their bias (+0.6 A on these flights without the correction) as a fault."""
+    (flight,) = run_flights([FlightCase("gusty", 5110, 40.0)], jobs=1)
+    table = flight.table
+    shares, medians = [], []
+    for m in table.motors():
+        sel = table["motor"] == m
+        t, v = table["time_s"][sel], table["voltage_v"][sel]
+        w, i = table["omega_rad_s"][sel], table["current_a"][sel]
+        res, _ = balance_deviations(motor, t, v, w, i, 0.15, 0.5, activity_ref_v=0.4, tau_max_s=1.5)
+        judged = (table["throttle"][sel] >= 0.2) & (t > 5.0)
+        shares.append(np.mean(i[judged] == 0.0))
+        medians.append(np.median(res.delta_current_a[judged]))
+    assert np.mean(shares) > 0.05  # the flight does have unsigned zeros ...
+    assert np.max(np.abs(medians)) < 0.25  # ... and the current deviation stays centred
+
+
+def test_activity_counts_sparser_telemetry_as_more_active(motor) -> None:
+    """The same zigzag sampled at 6.25 Hz and at 25 Hz: the balance's activity differs by √4 = 2 (an
+    average of a quarter as many samples is twice as noisy)."""
+    activities = []
+    for rate_hz in (6.25, 25.0):
+        t = np.arange(0.0, 20.0, 1.0 / rate_hz)
+        v = 7.0 + 0.5 * (-1.0) ** np.arange(t.size)
+        w = steady_state(motor, np.full(t.size, 7.0)).omega_rad_s
+        res, _ = balance_deviations(motor, t, v, w, np.full(t.size, 5.0), 0.15, 0.5)
+        activities.append(res.activity_v[-1])
+    assert activities[0] / activities[1] == pytest.approx(2.0, rel=0.02)
+    assert activities[1] == pytest.approx(1.0, rel=0.02)  # 25 Hz is the reference rate: as measured
+
+
+def test_warm_mask_restarts_after_idle() -> None:
+    t = np.arange(12) * 0.1
+    v = np.full(12, 6.0)
+    idle = np.zeros(12, dtype=bool)
+    idle[4:6] = True  # the motor idles at 0.4-0.5 s: the low-passes fill with spin-down
+    warm, _ = warm_mask(t, v, 0.25, 0.5, 1.0, restart=idle)
+    # start at 0 → warm from 0.3; idle until 0.5 → warm again from 0.8
+    assert warm.tolist() == [False, False, False, True, False, False, False, False, True, True, True, True]

@@ -255,3 +255,47 @@ def test_free_speed_headroom_leaves_the_speed_only_branch_alone(testbed_profile,
         omega_free_rad_s=[v / paper_motor.k_e],
     )
     assert MotorState(int(code[0])) == MotorState.NORMAL
+
+
+def test_departures_that_agree_name_the_fault(testbed_profile, paper_motor) -> None:
+    """joint_band_sum: speed and current both part-way out, the way one fault moves them, name it."""
+    from dataclasses import replace
+
+    joint = replace(testbed_profile, joint_band_sum=1.5)
+    bw, bi = 20.0, 1.921  # the bands at V (speed, current)
+    cases = [
+        # (speed, current) in shares of their bands: paper's tree, with the joint rule
+        ((-0.8, -0.8), MotorState.NORMAL, MotorState.F4_1),  # slower and less: open transistor
+        ((-0.8, 0.8), MotorState.NORMAL, MotorState.F1_1),  # slower and more: friction
+        ((0.8, -0.8), MotorState.NORMAL, MotorState.F3_1),  # faster and less: lighter propeller
+        ((0.6, -1.2), MotorState.F4_1, MotorState.F3_1),  # "current low, speed inside" but rising
+        ((-0.6, -0.6), MotorState.NORMAL, MotorState.NORMAL),  # 1.2 < 1.5: still noise
+        ((0.8, 0.8), MotorState.NORMAL, MotorState.NORMAL),  # faster with more: no fault does that
+        ((-0.8, -0.0), MotorState.NORMAL, MotorState.NORMAL),  # one departure alone: the full band
+    ]
+    for (dw, di), paper, with_joint in cases:
+        assert one(testbed_profile, paper_motor, dw * bw, di * bi) == paper, (dw, di)
+        assert one(joint, paper_motor, dw * bw, di * bi) == with_joint, (dw, di)
+
+
+def test_joint_band_sum_is_validated() -> None:
+    from mav_motor_health.errors import ConfigError
+
+    for bad in (0.5, 2.5, -1.0):
+        with pytest.raises(ConfigError, match="joint_band_sum"):
+            ThresholdProfile(name="x", joint_band_sum=bad)
+
+
+def test_stop_speed_fraction_names_a_stall_while_the_rotor_runs_down(testbed_profile, paper_motor) -> None:
+    from dataclasses import replace
+
+    w_m, _ = model_at(paper_motor)
+    running_down = 0.2 * w_m  # well above 100 rad/s, a fifth of what the input gives
+    assert running_down > 150
+    assert one(testbed_profile, paper_motor, 0, 0, omega=running_down, current=3.0) == MotorState.F4_1
+    early = replace(testbed_profile, stop_speed_fraction=0.25)
+    assert one(early, paper_motor, 0, 0, omega=running_down, current=3.0) == MotorState.F2_1
+    assert one(early, paper_motor, 0, 0, omega=running_down, current=8.0) == MotorState.F4_2
+    assert (
+        one(early, paper_motor, 0, 0, omega=0.3 * w_m, current=3.0) == MotorState.F4_1
+    )  # not below a quarter

@@ -262,6 +262,8 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             speed_only_band_frac=p.number("speed_only_band_frac", 0.15, minimum=0.0, maximum=1.0),
             # 0 (or absent) means the default; the range is checked by ThresholdProfile
             free_speed_headroom_fraction=p.number("free_speed_headroom_fraction", 0.0) or 0.5,
+            stop_speed_fraction=p.number("stop_speed_fraction", 0.0, minimum=0.0, maximum=0.99),
+            joint_band_sum=p.number("joint_band_sum", 0.0, minimum=0.0, maximum=2.0),
             min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
             activity_band=activity_band or (),  # type: ignore[arg-type]
             steady=SteadyRule(
@@ -320,6 +322,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"stall_split_ref_v = {profile.stall_split_ref_v!r}",
         f"speed_only_band_frac = {profile.speed_only_band_frac!r}",
         f"free_speed_headroom_fraction = {profile.free_speed_headroom_fraction!r}",
+        f"joint_band_sum = {profile.joint_band_sum!r}",
+        f"stop_speed_fraction = {profile.stop_speed_fraction!r}",
         f"min_command = {profile.min_command!r}",
     ]
     if profile.activity_band:
@@ -343,6 +347,7 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
     ]
     if profile.persistence.max_gap_s != float("inf"):
         lines.append(f"max_gap_s = {profile.persistence.max_gap_s!r}")
+
     if profile.persistence.announce_s:
         lines += ["", "[persistence.announce_s]"]
         lines += [

@@ -117,7 +117,7 @@ def diagnose_motor(
         # A stalled motor: the speed itself (the lower of the sample and its low-pass, so that a
         # start-up kick does not break the run and the first slow sample counts), and the mean current.
         slow = np.fmin(omega_in, bal.omega_mean_rad_s)
-        stalled_like = slow < profile.stop_speed_rad_s
+        stalled_like = slow < np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * omega_pred)
         omega_seen = np.where(stalled_like, slow, omega_pred + bal.delta_omega_rad_s)
         omega_seen = np.where(np.isfinite(omega_in), omega_seen, np.nan)
         current_seen = np.where(stalled_like, bal.current_mean_a, current_pred + bal.delta_current_a)
@@ -126,6 +126,11 @@ def diagnose_motor(
         # is no step at all) puts two operating points into the low-passes: judge after settle_s. A new
         # stream (the first sample, or after a gap) waits until the activity is known too.
         step_v = rule.step_v + 3.0 * np.nan_to_num(activity)
+        # A motor at idle (below min_command: spin-down, braking with its current unread) restarts the
+        # wait: when it comes back the low-passes still hold the idle.
+        at_idle = None
+        if command is not None and profile.min_command > 0:
+            at_idle = np.asarray(command, dtype=float) < profile.min_command
         warm, steady_carry = warm_mask(
             t,
             v,
@@ -134,6 +139,7 @@ def diagnose_motor(
             step_v,
             carry.steady,
             start_settle_s=3.0 * rule.activity_tau_s,  # the activity's low-pass has to fill up first
+            restart=at_idle,
         )
         steady = warm & np.isfinite(v) & np.isfinite(omega_in)
         response_carry = carry.response

@@ -136,17 +136,27 @@ class ThresholdProfile:
     ``free_speed_headroom_fraction`` (0 < f ≤ 1) narrows the upper side of the speed band where the model
     speed is near the free speed ``V/k_e``: "speed above the band" is ω > ω_model + clip(f·(V/k_e −
     ω_model), band/2, band) (see :mod:`.tree`, rule 2). 0 or absent in TOML: the default, 0.5.
+
+    ``stop_speed_fraction`` (0 ≤ f < 1): a motor below f × its expected speed counts as stopped too (tree
+    rule 1; 0, the default: the paper's stop speed alone).
+
+    ``joint_band_sum`` (1 ≤ c ≤ 2, or 0): where speed and current both leave the model in the directions a
+    fault moves them, by shares of their bands that add up to at least c, that fault is named even if
+    neither leaves its band (two departures that agree need less of each; see :mod:`.tree`). 0, the
+    default: off, the paper's tree.
     """
 
     name: str
     speed_band_rad_s: float = 20.0
     current_band_a: tuple[tuple[float, float], ...] = ((4.0, 0.25), (11.0, 2.5))
     stop_speed_rad_s: float = 100.0
+    stop_speed_fraction: float = 0.0
     stall_split_a: float = 6.0
     stall_split_per_v: float = 0.0
     stall_split_ref_v: float = 11.1
     speed_only_band_frac: float = 0.15
     free_speed_headroom_fraction: float = 0.5
+    joint_band_sum: float = 0.0
     min_command: float = 0.0
     activity_band: tuple[tuple[float, float, float], ...] = ()
     steady: SteadyRule = field(default_factory=SteadyRule)
@@ -161,6 +171,12 @@ class ThresholdProfile:
             )
         if not self.stop_speed_rad_s >= 0:
             raise ConfigError(f"{self.stop_speed_rad_s!r}", key="stop_speed_rad_s", expected=">= 0 rad/s")
+        if not 0 <= self.stop_speed_fraction < 1:
+            raise ConfigError(
+                f"{self.stop_speed_fraction!r}",
+                key="stop_speed_fraction",
+                expected="a fraction 0 <= f < 1 of the expected speed (0: 100 rad/s alone, the paper)",
+            )
         if not self.stall_split_a > 0:
             raise ConfigError(f"{self.stall_split_a!r}", key="stall_split_a", expected="a current > 0 A")
         widen = self.activity_band
@@ -183,6 +199,12 @@ class ThresholdProfile:
                 f"{self.free_speed_headroom_fraction!r}",
                 key="free_speed_headroom_fraction",
                 expected="a fraction 0 < f <= 1 of the free-speed headroom (0 or absent: the default 0.5)",
+            )
+        if not (self.joint_band_sum == 0 or 1 <= self.joint_band_sum <= 2):
+            raise ConfigError(
+                f"{self.joint_band_sum!r}",
+                key="joint_band_sum",
+                expected="a sum of band shares between 1 and 2, or 0 (off)",
             )
         band = self.current_band_a
         if len(band) < 1 or any(len(p) != 2 for p in band):

@@ -59,11 +59,14 @@ def warm_mask(
     step_v: NDArray[np.float64] | float,
     carry: SteadyCarry = SteadyCarry(),
     start_settle_s: float = 0.0,
+    restart: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.bool_], SteadyCarry]:
     """For the averaging rule (``kind = "balance"``): True once samples have come for
     ``start_settle_s`` (at least ``settle_s``) without a gap longer than ``max_gap_s``, and for
     ``settle_s`` since the last input step larger than ``step_v`` (per sample): the low-passes then hold
-    samples of one operating point, or of an input that moves steadily, not the sampled edge of a step."""
+    samples of one operating point, or of an input that moves steadily, not the sampled edge of a step.
+    ``restart`` marks samples that count as a step whatever the input did (the pipeline: a motor at idle,
+    whose low-passes are full of spin-down and idle when it comes back)."""
     t = np.asarray(time_s, dtype=float)
     v = np.asarray(voltage_v, dtype=float)
     if t.size == 0:
@@ -72,6 +75,8 @@ def warm_mask(
     previous_v = np.concatenate([[carry.last_voltage_v], v[:-1]])
     start = ~(t - previous_t <= max_gap_s)  # the first sample ever (NaN before it) starts a stream
     step = start | (np.abs(v - previous_v) > step_v)  # a NaN input is no step (the low-passes hold)
+    if restart is not None:
+        step = step | restart
     last_start = np.maximum.accumulate(
         np.concatenate([[carry.last_start_time_s], np.where(start, t, -np.inf)])
     )[1:]

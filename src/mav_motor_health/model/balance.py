@@ -26,9 +26,19 @@ not move the speed residual.) The tree then judges ``ω_model(V̄) + Δω`` and 
 ``ω_model(V̄)`` and ``i_model(V̄)``: on a testbed at constant input this is the paper's comparison; in
 flight it is the same comparison without needing the input to stand still.
 
+Most ESCs report their current unsigned: a motor that brakes (its back-EMF above the input, the current
+flowing back) reads 0, not its negative current. Where the input zigzags hard, a fair share of readings
+are such zeros and the mean of the readings sits above the mean current (by 0.6 A on the simulated
+hexacopter in gusty air, enough to hide an open transistor's current loss). The mechanical balance
+therefore uses the mean the readings imply when the zeros are taken for what they are, readings at or
+below zero (:func:`censored_mean`).
+
 The *input activity* (:func:`input_activity`) measures how much the input zigzags between samples: the
 balances' noise grows with it (a command that moves between samples leaves the sensed current behind),
-so the flight rule averages longer and the flight profile widens its bands with it.
+so the flight rule averages longer and the flight profile widens its bands with it. The balance rule
+scales it by √(sample interval / 40 ms): the noise of an average grows as √(interval) for the same
+averaging time, so an ESC that reports at 10 Hz counts as more active than one at 50 Hz with the same
+input.
 """
 
 from __future__ import annotations
@@ -37,17 +47,29 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.special import ndtr, ndtri
 
 from .dynamics import ResponseCarry, first_order_response
 from .equations import current_from_speed, steady_state
 from .params import MotorParams
 
-__all__ = ["ActivityCarry", "BalanceCarry", "BalanceResult", "balance_deviations", "input_activity"]
+__all__ = [
+    "ActivityCarry",
+    "BalanceCarry",
+    "BalanceResult",
+    "balance_deviations",
+    "censored_mean",
+    "input_activity",
+]
 
 FloatArray = NDArray[np.float64]
 
 #: the input activity falls this many times slower than it rises (see :func:`input_activity`)
 SLOW_FALL = 6.0
+#: the balance rule scales the activity by √(sample interval / this): 40 ms, an ESC reporting at 25 Hz
+INTERVAL_REF_S = 0.04
+#: time constant of the low-passed sample interval [s]
+INTERVAL_TAU_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -69,6 +91,8 @@ class BalanceCarry:
     current: ResponseCarry = field(default_factory=ResponseCarry)
     electrical: ResponseCarry = field(default_factory=ResponseCarry)
     mechanical: ResponseCarry = field(default_factory=ResponseCarry)
+    zero_current: ResponseCarry = field(default_factory=ResponseCarry)
+    interval: ResponseCarry = field(default_factory=ResponseCarry)
     activity: ActivityCarry = field(default_factory=ActivityCarry)
 
 
@@ -81,7 +105,7 @@ class BalanceResult:
     delta_current_a: FloatArray  # steady-state current deviation the residuals imply
     omega_mean_rad_s: FloatArray  # low-passed measured speed
     current_mean_a: FloatArray  # low-passed measured current
-    activity_v: FloatArray  # RMS of the input around its low-pass
+    activity_v: FloatArray  # the input activity, scaled by √(sample interval / INTERVAL_REF_S)
 
 
 def input_activity(
@@ -114,6 +138,27 @@ def input_activity(
     return activity, ActivityCarry(response=response, slow=slow_response, last_v=last_v, last_dv=last_dv)
 
 
+#: above this share of zero readings the censored mean is not trusted further (most readings say nothing)
+MAX_ZERO_SHARE = 0.9
+
+
+def censored_mean(mean_a: ArrayLike, zero_share: ArrayLike) -> FloatArray:
+    """The mean of a current whose negative values read 0, from the readings' mean and share of zeros.
+
+    Taking the current as normal with mean μ and deviation σ, a reading ``max(i, 0)`` is zero with
+    probability ``p = Φ(−μ/σ)`` and has the mean ``m = σ·(z·Φ(z) + φ(z))`` with ``z = μ/σ``: the share of
+    zeros gives ``z = Φ⁻¹(1 − p)``, the mean then ``σ`` and ``μ = z·σ``. With no zeros the mean is the
+    readings' mean; ``p`` is held below :data:`MAX_ZERO_SHARE`.
+    """
+    m = np.asarray(mean_a, dtype=float)
+    p = np.clip(np.asarray(zero_share, dtype=float), 0.0, MAX_ZERO_SHARE)
+    censored = p > 1e-6
+    z = ndtri(1.0 - np.where(censored, p, 0.5))
+    pdf = np.exp(-0.5 * z * z) / np.sqrt(2.0 * np.pi)
+    sigma = m / (z * ndtr(z) + pdf)
+    return np.where(censored & np.isfinite(p), z * sigma, m)
+
+
 def balance_deviations(
     params: MotorParams,
     time_s: ArrayLike,
@@ -143,6 +188,12 @@ def balance_deviations(
     i = np.asarray(current_a, dtype=float)
     p = params
     activity, c_a = input_activity(t, v, activity_tau_s, carry.activity)
+    # The balances average samples: an ESC that reports less often averages fewer of them in the same
+    # time, and its noise is larger by √(interval); the activity that sets bands and low-pass says so.
+    previous_t = np.concatenate([[carry.voltage.time_s], t[:-1]])
+    interval, c_dt = first_order_response(t, t - previous_t, INTERVAL_TAU_S, carry.interval)
+    interval = np.where(np.isfinite(interval) & (interval > 0), interval, INTERVAL_REF_S)
+    activity = activity * np.sqrt(interval / INTERVAL_REF_S)
     tau: FloatArray | float = tau_s
     if activity_ref_v > 0:
         tau = np.clip(tau_s * activity / activity_ref_v, tau_s, max(tau_s, tau_max_s))
@@ -152,6 +203,8 @@ def balance_deviations(
     v_mean, c_v = first_order_response(t, v, tau, carry.voltage)
     w_mean, c_w = first_order_response(t, w, tau, carry.omega)
     i_mean, c_i = first_order_response(t, i, tau, carry.current)  # the stall current: every reading
+    zero = np.where(np.isfinite(i), (i == 0.0).astype(float), np.nan)
+    zero_share, c_z = first_order_response(t, zero, tau, carry.zero_current)
     sb_mean, c_e = first_order_response(t, speed_balance, tau, carry.electrical)
     torque = p.k_t * (i - load_a)
     rt_mean, c_m = first_order_response(t, torque, tau, carry.mechanical)
@@ -159,7 +212,8 @@ def balance_deviations(
     accel_torque = inertia * (w - w_mean) / tau
     accel_torque = np.where(np.isfinite(accel_torque), accel_torque, 0.0)
     sb_mean = sb_mean - p.R_ohm * accel_torque
-    rt_mean = rt_mean - accel_torque
+    # unsigned readings: the zeros were currents at or below zero (see the module doc)
+    rt_mean = rt_mean - accel_torque + p.k_t * (censored_mean(i_mean, zero_share) - i_mean)
     model = steady_state(p, v_mean)
     w_m = np.maximum(model.omega_rad_s, 0.0)
     g = p.k * p.C_p * w_m ** (p.k - 1.0) + p.B
@@ -185,6 +239,8 @@ def balance_deviations(
         current=c_i,
         electrical=c_e,
         mechanical=c_m,
+        zero_current=c_z,
+        interval=c_dt,
         activity=c_a,
     )
     return result, new
