@@ -125,12 +125,16 @@ def diagnose_motor(
         # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air
         # is no step at all) puts two operating points into the low-passes: judge after settle_s. A new
         # stream (the first sample, or after a gap) waits until the activity is known too.
-        step_v = rule.step_v + 3.0 * np.nan_to_num(activity)
-        # A motor at idle (below min_command: spin-down, braking with its current unread) restarts the
-        # wait: when it comes back the low-passes still hold the idle.
+        step_v = rule.step_v + 3.0 * np.nan_to_num(bal.zigzag_v)  # the jumps as measured, not scaled
+        # A motor whose low-passed input is at idle (below min_command: spin-down, braking with its current
+        # unread) restarts the wait: when it comes back the low-passes still hold the idle. The low-passed
+        # input, not the sample: in gusty air single commands dip to idle and back all the time.
         at_idle = None
         if command is not None and profile.min_command > 0:
-            at_idle = np.asarray(command, dtype=float) < profile.min_command
+            cmd = np.asarray(command, dtype=float)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bus_v = np.where(cmd > 0.05, v / cmd, np.nan)  # the input is command × bus voltage
+            at_idle = judged_v < profile.min_command * bus_v
         warm, steady_carry = warm_mask(
             t,
             v,

@@ -106,6 +106,7 @@ class BalanceResult:
     omega_mean_rad_s: FloatArray  # low-passed measured speed
     current_mean_a: FloatArray  # low-passed measured current
     activity_v: FloatArray  # the input activity, scaled by √(sample interval / INTERVAL_REF_S)
+    zigzag_v: FloatArray  # the input activity as measured (how far the input jumps between samples)
 
 
 def input_activity(
@@ -193,6 +194,7 @@ def balance_deviations(
     previous_t = np.concatenate([[carry.voltage.time_s], t[:-1]])
     interval, c_dt = first_order_response(t, t - previous_t, INTERVAL_TAU_S, carry.interval)
     interval = np.where(np.isfinite(interval) & (interval > 0), interval, INTERVAL_REF_S)
+    zigzag = activity
     activity = activity * np.sqrt(interval / INTERVAL_REF_S)
     tau: FloatArray | float = tau_s
     if activity_ref_v > 0:
@@ -232,6 +234,7 @@ def balance_deviations(
         omega_mean_rad_s=w_mean,
         current_mean_a=i_mean,
         activity_v=activity,
+        zigzag_v=zigzag,
     )
     new = BalanceCarry(
         voltage=c_v,
