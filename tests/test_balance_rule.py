@@ -219,6 +219,12 @@ def test_activity_counts_sparser_telemetry_as_more_active(motor) -> None:
         assert res.zigzag_v[-1] == pytest.approx(1.0, rel=0.02)  # the jumps as measured: what a step is
     assert activities[0] / activities[1] == pytest.approx(2.0, rel=0.02)
     assert activities[1] == pytest.approx(1.0, rel=0.02)  # 25 Hz is the reference rate: as measured
+    # a dropout of a second is a gap, not a slower ESC: the activity after it is as before
+    t = np.concatenate([np.arange(0.0, 10.0, 0.04), np.arange(11.0, 14.0, 0.04)])
+    v = 7.0 + 0.5 * (-1.0) ** np.arange(t.size)
+    w = steady_state(motor, np.full(t.size, 7.0)).omega_rad_s
+    res, _ = balance_deviations(motor, t, v, w, np.full(t.size, 5.0), 0.15, 0.5)
+    assert res.activity_v[-1] == pytest.approx(1.0, rel=0.02)
 
 
 def test_warm_mask_restarts_after_idle() -> None:

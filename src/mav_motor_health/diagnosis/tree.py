@@ -34,8 +34,8 @@ of the model (an extrapolated calibration, say) cannot be told from a fault.
 
 With ``stop_speed_fraction`` f > 0 (our addition, the flight profile: 0.25) the stop speed is the larger of
 100 rad/s and f × the expected speed: a motor turning at less than a quarter of the speed its input gives
-is stopping (no other fault slows it by more than a fifth), and a stalling rotor is named while it runs
-down through that speed instead of below 100 rad/s, some 0.05 s sooner on the simulated hexacopter.
+is stopping (the other faults slow a motor by far less than three quarters), and a stalling rotor is named
+while it runs down through that speed instead of below 100 rad/s (docs/flight.md, section 2b).
 
 Rule 1 applies only where the model itself expects the motor to turn faster than the stop speed plus the
 speed band: a motor at idle or disarmed is not "stopped" in the paper's sense (its testbed never ran below

@@ -28,8 +28,8 @@ flight it is the same comparison without needing the input to stand still.
 
 Most ESCs report their current unsigned: a motor that brakes (its back-EMF above the input, the current
 flowing back) reads 0, not its negative current. Where the input zigzags hard, a fair share of readings
-are such zeros and the mean of the readings sits above the mean current (by 0.6 A on the simulated
-hexacopter in gusty air, enough to hide an open transistor's current loss). The mechanical balance
+are such zeros and the mean of the readings sits above the mean current (by about half an ampere on
+the simulated hexacopter in gusty air, enough to hide an open transistor's current loss). The mechanical balance
 therefore uses the mean the readings imply when the zeros are taken for what they are, readings at or
 below zero (:func:`censored_mean`).
 
@@ -70,6 +70,8 @@ SLOW_FALL = 6.0
 INTERVAL_REF_S = 0.04
 #: time constant of the low-passed sample interval [s]
 INTERVAL_TAU_S = 2.0
+#: a longer silence is a gap in the telemetry (a dropout), not its rate: it leaves the interval as it was
+MAX_INTERVAL_S = 0.25
 
 
 @dataclass(frozen=True)
@@ -192,7 +194,9 @@ def balance_deviations(
     # The balances average samples: an ESC that reports less often averages fewer of them in the same
     # time, and its noise is larger by √(interval); the activity that sets bands and low-pass says so.
     previous_t = np.concatenate([[carry.voltage.time_s], t[:-1]])
-    interval, c_dt = first_order_response(t, t - previous_t, INTERVAL_TAU_S, carry.interval)
+    gaps = t - previous_t
+    gaps = np.where(gaps <= MAX_INTERVAL_S, gaps, np.nan)  # NaN holds the low-pass
+    interval, c_dt = first_order_response(t, gaps, INTERVAL_TAU_S, carry.interval)
     interval = np.where(np.isfinite(interval) & (interval > 0), interval, INTERVAL_REF_S)
     zigzag = activity
     activity = activity * np.sqrt(interval / INTERVAL_REF_S)
