@@ -86,7 +86,8 @@ def test_missing_values_are_no_data(testbed_profile, paper_motor) -> None:
     assert code[0] == MotorState.NO_DATA
 
 
-def trajectory(testbed_profile, paper_motor, omegas, currents, v=V):
+def trajectory(testbed_profile, paper_motor, omegas, currents, v=V, omega_free_rad_s=None):
+    """State labels of samples at the model point of voltage v (free speed given, or None)."""
     w_m, i_m = model_at(paper_motor, v)
     n = len(omegas)
     codes = classify(
@@ -96,6 +97,7 @@ def trajectory(testbed_profile, paper_motor, omegas, currents, v=V):
         current_a=currents,
         current_model_a=np.full(n, i_m),
         voltage_v=np.full(n, v),
+        omega_free_rad_s=None if omega_free_rad_s is None else np.full(n, omega_free_rad_s),
     )
     return [MotorState(int(c)).label for c in codes]
 
@@ -182,17 +184,7 @@ def test_free_speed_headroom_narrows_only_the_upper_side(testbed_profile, paper_
     currents = [low_i, i_m, i_m, i_m, low_i]
 
     def states(omega_free: float | None) -> list[str]:
-        n = len(omegas)
-        codes = classify(
-            testbed_profile,
-            omega_rad_s=omegas,
-            omega_model_rad_s=np.full(n, w_m),
-            current_a=currents,
-            current_model_a=np.full(n, i_m),
-            voltage_v=np.full(n, v),
-            omega_free_rad_s=None if omega_free is None else np.full(n, omega_free),
-        )
-        return [MotorState(int(c)).label for c in codes]
+        return trajectory(testbed_profile, paper_motor, omegas, currents, v=v, omega_free_rad_s=omega_free)
 
     # inside the full ±20 rad/s band, beyond half the headroom: F3.1 with a low current, UNKNOWN without;
     # inside half the headroom: NORMAL; below the model the full band still applies (-15 NORMAL, -25 F4.1)
