@@ -81,6 +81,7 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ("[profile]\nactivity_band = [[1.0, 10, 0.1], [0.5, 20, 0.2]]\n", "profile.activity_band"),
         ("[profile]\nactivity_band = [[0.5, -10, 0.1]]\n", "profile.activity_band"),
         ('[steady]\nkind = "balance"\nresidual_tau_s = 0\n', "steady.residual_tau_s"),
+        ("[persistence]\nmax_depth = 0.5\n", "persistence.max_depth"),
     ],
 )
 def test_bad_profiles(tmp_path: Path, text: str, key: str) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -109,3 +110,35 @@ def test_hold_grows_with_activity() -> None:
 
     assert abs(first(calm) - 0.26) < 0.011  # 0.2 + 0.5·0.1
     assert abs(first(gusty) - 1.2) < 0.011  # 0.2 + 0.5·2.0
+
+
+def test_a_deep_departure_is_held_sooner() -> None:
+    """rate (the tree's depth, capped): the interval before a sample counts rate times toward the hold."""
+    t = np.arange(0.0, 1.0, 0.02)
+    state = np.full(t.size, int(MotorState.F1_1), dtype=np.int8)
+    eligible = np.ones(t.size, dtype=bool)
+    holds = np.full(len(MotorState), 0.2)
+
+    def first(rate: np.ndarray | None) -> float:
+        out, _ = announce(holds, t, state, eligible, rate=rate)
+        return float(t[np.flatnonzero(out == MotorState.F1_1)[0]])
+
+    assert first(None) == pytest.approx(0.2)
+    assert first(np.ones(t.size)) == pytest.approx(0.2)
+    assert first(np.full(t.size, 2.0)) == pytest.approx(0.1)  # twice as deep: half the time
+    assert first(np.full(t.size, 4.0)) == pytest.approx(0.06)  # 3 intervals of 0.02 s × 4 ≥ 0.2
+
+
+def test_rate_carries_split_anywhere_give_same_result() -> None:
+    rng = np.random.default_rng(6)
+    t = np.cumsum(rng.uniform(0.01, 0.05, 400))
+    s = rng.choice([0, 1, 4], size=400, p=[0.5, 0.35, 0.15])
+    eligible = rng.random(400) > 0.2
+    rate = rng.uniform(1.0, 3.0, 400)
+    holds = PersistenceRule(default_announce_s=0.15, clear_s=0.12).hold_s()
+    whole, _ = announce(holds, t, s, eligible, rate=rate)
+    assert (whole != 0).any() and (whole == 0).any()
+    for cut in (1, 57, 200, 399):
+        a, carry = announce(holds, t[:cut], s[:cut], eligible[:cut], PersistenceCarry(), rate=rate[:cut])
+        b, _ = announce(holds, t[cut:], s[cut:], eligible[cut:], carry, rate=rate[cut:])
+        np.testing.assert_array_equal(np.concatenate([a, b]), whole)

@@ -291,3 +291,35 @@ def test_stop_speed_fraction_names_a_stall_while_the_rotor_runs_down(testbed_pro
     assert (
         one(early, paper_motor, 0, 0, omega=0.3 * w_m, current=3.0) == MotorState.F4_1
     )  # not below a quarter
+
+
+def test_depth_counts_the_bands_past_the_boundary(testbed_profile, paper_motor) -> None:
+    """classify_depth: 1 on a state's boundary (and for NORMAL), the shares of the bands beyond it."""
+    from dataclasses import replace
+
+    from mav_motor_health.diagnosis.tree import classify_depth
+
+    joint = replace(testbed_profile, joint_band_sum=1.5)
+    w_m, i_m = model_at(paper_motor)
+    bw, bi = 20.0, 1.921
+    cases = [
+        # (speed, current) in band shares, profile, expected state, expected depth
+        ((0.0, 0.0), testbed_profile, MotorState.NORMAL, 1.0),
+        ((-0.5, 2.0), testbed_profile, MotorState.F1_1, 2.0),  # the current, two bands above the model
+        ((-3.0, 0.5), testbed_profile, MotorState.F4_1, 3.0),  # the speed, three bands below
+        ((2.0, -3.0), testbed_profile, MotorState.F3_1, 2.0),  # both must be out: the lesser counts
+        ((2.0, -3.0), joint, MotorState.F3_1, 5.0 / 1.5),  # ... or their sum over the joint sum
+        ((-0.8, -0.8), joint, MotorState.F4_1, 1.6 / 1.5),  # departures that agree, just past 1.5
+        ((2.5, 0.0), testbed_profile, MotorState.UNKNOWN, 2.5),
+    ]
+    for (dw, di), profile, state, depth in cases:
+        codes, depths = classify_depth(
+            profile,
+            omega_rad_s=[w_m + dw * bw],
+            omega_model_rad_s=[w_m],
+            current_a=[i_m + di * bi],
+            current_model_a=[i_m],
+            voltage_v=[V],
+        )
+        assert MotorState(int(codes[0])) == state, (dw, di)
+        assert depths[0] == pytest.approx(depth, rel=1e-3), (dw, di)

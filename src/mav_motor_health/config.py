@@ -291,6 +291,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
                 max_gap_s=pers.number("max_gap_s", float("inf"), minimum=0.0, unit="s"),
                 announce_s=announce,
                 announce_per_activity_s=per_activity,
+                max_depth=pers.number("max_depth", 1.0, minimum=1.0),
             ),
         )
     except ConfigError as exc:
@@ -347,6 +348,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
     ]
     if profile.persistence.max_gap_s != float("inf"):
         lines.append(f"max_gap_s = {profile.persistence.max_gap_s!r}")
+    if profile.persistence.max_depth != 1:
+        lines.append(f"max_depth = {profile.persistence.max_depth!r}")
 
     if profile.persistence.announce_s:
         lines += ["", "[persistence.announce_s]"]

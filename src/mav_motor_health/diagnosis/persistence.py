@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from .states import MotorState
 
-__all__ = ["PersistenceCarry", "announce"]
+__all__ = ["PersistenceCarry", "announce", "run_hold"]
 
 
 @dataclass(frozen=True)
@@ -26,6 +26,7 @@ class PersistenceCarry:
     candidate: int = int(MotorState.NORMAL)
     candidate_since_s: float = float("-inf")
     last_eligible_s: float = float("-inf")
+    candidate_held_s: float = 0.0  # the candidate's hold so far (its time, weighted by the rate if given)
 
 
 def announce(
@@ -37,6 +38,7 @@ def announce(
     max_gap_s: float = float("inf"),
     hold_per_activity_s: NDArray[np.float64] | None = None,
     activity: NDArray[np.float64] | None = None,
+    rate: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.int8], PersistenceCarry]:
     """Announced state per sample given raw states; ``hold_s[code]`` is each state's hold time.
 
@@ -44,6 +46,11 @@ def announce(
     seen once, then again after a long silence, has not *held* in between. With ``hold_per_activity_s``
     and ``activity`` a state's hold grows with the input activity at each sample,
     ``hold_s[code] + hold_per_activity_s[code]·activity``: in gusty air a false state flickers longer.
+
+    ``rate`` (≥ 1 per sample; None: 1) makes a run's time count faster: the interval before each sample
+    counts ``rate`` times (the tree's depth, capped by the profile: a departure twice the band deep is
+    held twice as fast). The hold is then reached when Σ rate·Δt over the run's eligible samples
+    reaches it (:func:`run_hold`).
     """
     t = np.asarray(time_s, dtype=float)
     s = np.asarray(state, dtype=np.int64)
@@ -51,6 +58,7 @@ def announce(
     change_at: list[int] = []
     change_to: list[int] = []
     announced, candidate, since = carry.announced, carry.candidate, carry.candidate_since_s
+    held_s = carry.candidate_held_s
     if idx.size:
         te, se = t[idx], s[idx]
         boundaries = np.flatnonzero((np.diff(se) != 0) | (np.diff(te) > max_gap_s)) + 1
@@ -61,15 +69,27 @@ def announce(
             continues = start == 0 and run_state == candidate and te[0] - carry.last_eligible_s <= max_gap_s
             run_since = since if continues else float(te[start])
             candidate, since = run_state, run_since
+            if rate is not None:
+                steps = np.diff(te[start:end], prepend=carry.last_eligible_s if continues else te[start])
+                held = (held_s if continues else 0.0) + np.cumsum(rate[idx[start:end]] * steps)
+                held_s = float(held[-1])
+            else:
+                held_s = float(te[end - 1] - run_since)
             if run_state == announced:
                 continue
-            if hold_per_activity_s is None or activity is None or not hold_per_activity_s[run_state]:
+            if rate is not None:
+                need = np.full(end - start, float(hold_s[run_state]))
+                if hold_per_activity_s is not None and activity is not None:
+                    need += float(hold_per_activity_s[run_state]) * np.nan_to_num(activity[idx[start:end]])
+                reached = np.flatnonzero(held >= need)
+                j = start + (int(reached[0]) if reached.size else end - start)
+            elif hold_per_activity_s is None or activity is None or not hold_per_activity_s[run_state]:
                 due = run_since + float(hold_s[run_state])
                 j = start + int(np.searchsorted(te[start:end], due, side="left"))
             else:
                 extra = float(hold_per_activity_s[run_state]) * np.nan_to_num(activity[idx[start:end]])
-                held = np.flatnonzero(te[start:end] - run_since >= float(hold_s[run_state]) + extra)
-                j = start + (int(held[0]) if held.size else end - start)
+                due_at = np.flatnonzero(te[start:end] - run_since >= float(hold_s[run_state]) + extra)
+                j = start + (int(due_at[0]) if due_at.size else end - start)
             if j < end:
                 announced = run_state
                 change_at.append(int(idx[j]))
@@ -83,5 +103,19 @@ def announce(
         out[has] = values[which[has]]
     last = float(t[idx[-1]]) if idx.size else carry.last_eligible_s
     return out, PersistenceCarry(
-        announced=announced, candidate=candidate, candidate_since_s=since, last_eligible_s=last
+        announced=announced,
+        candidate=candidate,
+        candidate_since_s=since,
+        last_eligible_s=last,
+        candidate_held_s=held_s,
     )
+
+
+def run_hold(time_s: NDArray[np.float64], rate: NDArray[np.float64] | None = None) -> float:
+    """The hold one run of eligible samples reaches by its last sample: its duration, or Σ rate·Δt."""
+    t = np.asarray(time_s, dtype=float)
+    if t.size < 2:
+        return 0.0
+    if rate is None:
+        return float(t[-1] - t[0])
+    return float(np.sum(np.asarray(rate, dtype=float)[1:] * np.diff(t)))

@@ -28,9 +28,10 @@ from .plausibility import (
     sum_mismatch,
 )
 from .profile import ThresholdProfile
+from .stall import StallCarry, stall_mean
 from .states import MotorState
 from .steady import SteadyCarry, steady_mask, warm_mask
-from .tree import classify
+from .tree import classify_depth
 
 __all__ = ["DIAGNOSIS_COLUMNS", "MotorCarry", "StreamingDiagnoser", "diagnose", "diagnose_motor"]
 
@@ -65,6 +66,7 @@ class MotorCarry:
     plausibility: PlausibilityCarry = field(default_factory=PlausibilityCarry)
     persistence: PersistenceCarry = field(default_factory=PersistenceCarry)
     balance: BalanceCarry = field(default_factory=BalanceCarry)
+    stall: StallCarry = field(default_factory=StallCarry)
 
 
 def diagnose_motor(
@@ -96,6 +98,7 @@ def diagnose_motor(
     v = np.asarray(voltage_v, dtype=float)
     rule = profile.steady
     balance_carry = carry.balance
+    stall_carry = carry.stall
     activity: NDArray[np.float64] | None = None
     judged_v = v
     if rule.kind == "balance":
@@ -115,12 +118,14 @@ def diagnose_motor(
         activity, judged_v = bal.activity_v, bal.voltage_v
         omega_pred, current_pred = bal.omega_model_rad_s, bal.current_model_a
         # A stalled motor: the speed itself (the lower of the sample and its low-pass, so that a
-        # start-up kick does not break the run and the first slow sample counts), and the mean current.
+        # start-up kick does not break the run and the first slow sample counts), and the current
+        # averaged since the stall began (diagnosis/stall.py: the low-pass still holds the flight's).
         slow = np.fmin(omega_in, bal.omega_mean_rad_s)
         stalled_like = slow < np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * omega_pred)
         omega_seen = np.where(stalled_like, slow, omega_pred + bal.delta_omega_rad_s)
         omega_seen = np.where(np.isfinite(omega_in), omega_seen, np.nan)
-        current_seen = np.where(stalled_like, bal.current_mean_a, current_pred + bal.delta_current_a)
+        stall_current, stall_carry = stall_mean(np.asarray(current_a, dtype=float), stalled_like, carry.stall)
+        current_seen = np.where(stalled_like, stall_current, current_pred + bal.delta_current_a)
         current_seen = np.where(np.isfinite(np.asarray(current_a, dtype=float)), current_seen, np.nan)
         # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air
         # is no step at all) puts two operating points into the low-passes: judge after settle_s. A new
@@ -189,7 +194,7 @@ def diagnose_motor(
     if extra_flags is not None:
         flags = flags | extra_flags
     current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_a)
-    state = classify(
+    state, depth = classify_depth(
         profile,
         omega_rad_s=omega_seen,
         omega_model_rad_s=omega_pred,
@@ -211,6 +216,8 @@ def diagnose_motor(
         idle = np.asarray(command, dtype=float) < profile.min_command  # idle and spin-up: not judged
         eligible &= ~idle
         steady = steady & ~idle
+    depth[state == MotorState.SENSOR_FAULT] = 1.0
+    max_depth = profile.persistence.max_depth
     announced, persistence_carry = announce(
         profile.persistence.hold_s(),
         t,
@@ -220,6 +227,7 @@ def diagnose_motor(
         profile.persistence.max_gap_s,
         hold_per_activity_s=profile.persistence.hold_per_activity_s(),
         activity=activity,
+        rate=np.minimum(depth, max_depth) if max_depth > 1 else None,
     )
     columns: dict[str, NDArray] = {
         "state": state,
@@ -233,6 +241,7 @@ def diagnose_motor(
         "speed_band_rad_s": np.broadcast_to(profile.speed_band(activity), t.shape).astype(float),
         "current_band_a": profile.current_halfwidth_a(judged_v, activity),
         "input_activity_v": np.full(t.shape, np.nan) if activity is None else activity,
+        "depth": depth,
     }
     new_carry = MotorCarry(
         steady=steady_carry,
@@ -242,6 +251,7 @@ def diagnose_motor(
         plausibility=plausibility_carry,
         persistence=persistence_carry,
         balance=balance_carry,
+        stall=stall_carry,
     )
     return columns, new_carry
 
@@ -319,6 +329,7 @@ def diagnose(
         "speed_band_rad_s": np.full(n, np.nan),
         "current_band_a": np.full(n, np.nan),
         "input_activity_v": np.full(n, np.nan),
+        "depth": np.ones(n),
     }
     motors = ordered["motor"]
 
@@ -366,6 +377,7 @@ def diagnose(
         speed_band_rad_s=out["speed_band_rad_s"],
         current_band_a=out["current_band_a"],
         input_activity_v=out["input_activity_v"],
+        depth=out["depth"],
     )
     for name in ordered.names:
         result.setdefault(name, ordered[name])

@@ -83,6 +83,10 @@ class PersistenceRule:
 
     ``default_announce_s`` applies to states not listed. Returning to NORMAL uses ``clear_s``. A run
     ends where eligible samples are more than ``max_gap_s`` apart (sparse quasi-steady samples in gusts).
+
+    ``max_depth`` (≥ 1): a sample d bands past its state's boundary (the tree's depth) counts its
+    interval d times, up to ``max_depth`` times: a deep departure is announced sooner than one on the
+    edge of its band, as a CUSUM detector does. 1 (the default): time alone.
     """
 
     default_announce_s: float = 0.1
@@ -91,8 +95,13 @@ class PersistenceRule:
     max_gap_s: float = float("inf")
     #: per state label: seconds of hold added per volt of input activity (balance rule)
     announce_per_activity_s: tuple[tuple[str, float], ...] = ()
+    max_depth: float = 1.0
 
     def __post_init__(self) -> None:
+        if not self.max_depth >= 1:
+            raise ConfigError(
+                f"{self.max_depth!r}", key="persistence.max_depth", expected="a depth >= 1 (1: time alone)"
+            )
         values = [
             self.default_announce_s,
             self.clear_s,

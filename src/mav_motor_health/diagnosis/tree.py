@@ -37,6 +37,14 @@ With ``stop_speed_fraction`` f > 0 (our addition, the flight profile: 0.25) the 
 is stopping (the other faults slow a motor by far less than three quarters), and a stalling rotor is named
 while it runs down through that speed instead of below 100 rad/s (docs/flight.md, section 2b).
 
+Depth (our addition, :func:`classify_depth`): how far past its state's boundary each sample is, in
+bands: for F1.1 the current's share of its band (or, for departures that agree, the sum of the shares
+over ``joint_band_sum``), for F4.1 the larger of the speed's and the current's share (or the sum over c),
+for F3.1 the lesser of the two (both must be out; or the sum over c), for UNKNOWN the speed's share; 1 on
+the boundary and for NORMAL, the stalls and the speed-only states. Persistence lets a deep sample count
+its interval that many times (``persistence.max_depth``), so that a clear fault is announced sooner
+than a flicker on the edge of a band.
+
 Rule 1 applies only where the model itself expects the motor to turn faster than the stop speed plus the
 speed band: a motor at idle or disarmed is not "stopped" in the paper's sense (its testbed never ran below
 4 V, 390 rad/s). This is our addition. ``omega_expected_rad_s`` (default: the model speed) is the speed the
@@ -76,7 +84,7 @@ from numpy.typing import ArrayLike, NDArray
 from .profile import ThresholdProfile
 from .states import MotorState
 
-__all__ = ["classify"]
+__all__ = ["classify", "classify_depth"]
 
 
 def classify(
@@ -102,6 +110,37 @@ def classify(
     :func:`~mav_motor_health.model.balance.input_activity`) widens the bands as the profile says; None:
     the profile's fixed bands.
     """
+    state, _ = classify_depth(
+        profile,
+        omega_rad_s=omega_rad_s,
+        omega_model_rad_s=omega_model_rad_s,
+        current_a=current_a,
+        current_model_a=current_model_a,
+        voltage_v=voltage_v,
+        bus_voltage_v=bus_voltage_v,
+        current_trusted=current_trusted,
+        omega_expected_rad_s=omega_expected_rad_s,
+        omega_free_rad_s=omega_free_rad_s,
+        activity_v=activity_v,
+    )
+    return state
+
+
+def classify_depth(
+    profile: ThresholdProfile,
+    *,
+    omega_rad_s: ArrayLike,
+    omega_model_rad_s: ArrayLike,
+    current_a: ArrayLike,
+    current_model_a: ArrayLike,
+    voltage_v: ArrayLike,
+    bus_voltage_v: ArrayLike | None = None,
+    current_trusted: ArrayLike | None = None,
+    omega_expected_rad_s: ArrayLike | None = None,
+    omega_free_rad_s: ArrayLike | None = None,
+    activity_v: ArrayLike | None = None,
+) -> tuple[NDArray[np.int8], NDArray[np.float64]]:
+    """:func:`classify`, and how deep in its state each sample is (see "Depth"): state codes, depths."""
     w, w_model, i, i_model, v = np.broadcast_arrays(
         *(
             np.asarray(x, dtype=float)
@@ -124,14 +163,13 @@ def classify(
     speed_high = w > w_model + band_up
     current_low = i < i_model - band_i
     current_high = i > i_model + band_i
-    # Departures that agree, in shares of their bands (see "Departures that agree")
+    # The departures in shares of their bands (departures that agree, and the depth)
     joint = profile.joint_band_sum
-    if joint > 0:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            slower = np.maximum(w_model - w, 0.0) / band_w
-            faster = np.maximum(w - w_model, 0.0) / band_up
-            less = np.maximum(i_model - i, 0.0) / band_i
-            more = np.maximum(i - i_model, 0.0) / band_i
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slower = np.maximum(w_model - w, 0.0) / band_w
+        faster = np.maximum(w - w_model, 0.0) / band_up
+        less = np.maximum(i_model - i, 0.0) / band_i
+        more = np.maximum(i - i_model, 0.0) / band_i
     # Rule 1 needs the model to expect a turning motor: an idle or disarmed motor is not a stalled one.
     expected = w_model if omega_expected_rad_s is None else np.broadcast_to(omega_expected_rad_s, w.shape)
     stop = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * expected)
@@ -163,4 +201,18 @@ def classify(
         only[w > w_model + wide] = MotorState.FAST
         only[stopped] = MotorState.STALLED
         state[speed_only] = only[speed_only]
-    return state
+    # Depth: how many bands past the state's boundary the sample is (1 on the boundary; see "Depth")
+    pair = joint if joint > 0 else np.inf
+    depth = np.ones(w.shape)
+    with np.errstate(invalid="ignore"):
+        f11 = state == MotorState.F1_1
+        depth[f11] = np.fmax(more, (slower + more) / pair)[f11]
+        f41 = state == MotorState.F4_1
+        depth[f41] = np.fmax(np.fmax(slower, less), (slower + less) / pair)[f41]
+        f31 = state == MotorState.F3_1
+        depth[f31] = np.fmax(np.fmin(faster, less), (faster + less) / pair)[f31]
+        unknown = state == MotorState.UNKNOWN
+        depth[unknown] = faster[unknown]
+    depth = np.where(np.isfinite(depth), np.maximum(depth, 1.0), 1.0)
+    depth[speed_only] = 1.0
+    return state, depth

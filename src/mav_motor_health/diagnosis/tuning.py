@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from ..model.params import MotorParams
 from ..telemetry.table import TelemetryTable
+from .persistence import run_hold
 from .pipeline import diagnose
 from .plausibility import CURRENT_UNTRUSTED
 from .profile import PersistenceRule, ThresholdProfile
@@ -114,9 +115,10 @@ def _activity_band(
 
 
 def _false_runs(
-    result: TelemetryTable, healthy: NDArray[np.bool_], max_gap_s: float
+    result: TelemetryTable, healthy: NDArray[np.bool_], max_gap_s: float, max_depth: float = 1.0
 ) -> dict[int, list[float]]:
-    """Durations [s] of the runs of each raw state other than NORMAL over eligible healthy samples."""
+    """The holds [s] that the runs of each raw state other than NORMAL over eligible healthy samples reach:
+    their durations, or with ``max_depth`` > 1 their Σ depth·Δt (as persistence counts them)."""
     runs: dict[int, list[float]] = {}
     eligible = (result["steady"] | np.isin(result["state"], [MotorState.F2_1, MotorState.F4_2])) & healthy
     for motor in result.motors():
@@ -133,7 +135,8 @@ def _false_runs(
                 continue
             # persistence announces a state at an eligible sample of its run that comes at least the hold
             # after the run's first: a hold longer than the run's last sample never announces it
-            runs.setdefault(code, []).append(float(t[b - 1] - t[a]))
+            rate = np.minimum(result["depth"][sel][a:b], max_depth) if max_depth > 1 else None
+            runs.setdefault(code, []).append(run_hold(t[a:b], rate))
     return runs
 
 
@@ -287,7 +290,8 @@ def tune_profile(
                 if fit_activity and activity is not None and judged.any()
                 else 0.0
             )
-            for code, durations in _false_runs(r, healthy, profile.persistence.max_gap_s).items():
+            false_runs = _false_runs(r, healthy, profile.persistence.max_gap_s, profile.persistence.max_depth)
+            for code, durations in false_runs.items():
                 need = max(margin * max(durations), _tail_hold(durations, flight_hours, false_rate_per_hour))
                 needs.setdefault(code, []).append((level, need))
         # the base profile's holds are minimums (speed-only states, say, which labelled flights with a
@@ -309,6 +313,7 @@ def tune_profile(
                 announce_s=holds,
                 max_gap_s=base.persistence.max_gap_s,
                 announce_per_activity_s=tuple(sorted(per_activity.items())),
+                max_depth=base.persistence.max_depth,
             ),
         )
         checked = [diagnose(f.table, params, profile) for f in flights]
