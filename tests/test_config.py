@@ -82,6 +82,8 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ("[profile]\nactivity_band = [[0.5, -10, 0.1]]\n", "profile.activity_band"),
         ('[steady]\nkind = "balance"\nresidual_tau_s = 0\n', "steady.residual_tau_s"),
         ("[persistence]\nmax_depth = 0.5\n", "persistence.max_depth"),
+        ("[steady]\nslow_factor = 0.5\n", "steady.slow_factor"),
+        ("[profile]\nslow_band_fraction = 1.5\n", "profile.slow_band_fraction"),
     ],
 )
 def test_bad_profiles(tmp_path: Path, text: str, key: str) -> None:

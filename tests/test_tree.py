@@ -323,3 +323,30 @@ def test_depth_counts_the_bands_past_the_boundary(testbed_profile, paper_motor) 
         )
         assert MotorState(int(codes[0])) == state, (dw, di)
         assert depths[0] == pytest.approx(depth, rel=1e-3), (dw, di)
+
+
+def test_agreeing_departures_name_a_fault_only_where_both_depart_its_way() -> None:
+    """The slow look's rule (tree.agreeing_departures): one quantity alone names nothing."""
+    from mav_motor_health.diagnosis.tree import agreeing_departures
+
+    bw, bi = 10.0, 0.5  # the (narrowed) bands
+    cases = [
+        # (speed, current) in shares of the bands -> state, depth
+        ((0.0, -3.0), MotorState.NORMAL, 1.0),  # the current alone, far below: a model error?
+        ((0.0, 3.0), MotorState.NORMAL, 1.0),
+        ((-3.0, 0.0), MotorState.NORMAL, 1.0),
+        ((-0.4, -1.2), MotorState.F4_1, 1.6 / 1.5),  # slower and less, adding up to 1.6
+        ((-0.9, 0.9), MotorState.F1_1, 1.8 / 1.5),  # slower and more
+        ((0.5, -1.2), MotorState.F3_1, 1.7 / 1.5),  # faster and less
+        ((-1.2, 0.5), MotorState.NORMAL, 1.0),  # below the speed band, current inside: not friction
+        ((-1.2, 1.1), MotorState.F1_1, 2.3 / 1.5),
+        ((0.9, 0.9), MotorState.NORMAL, 1.0),  # faster with more: no fault does that
+        ((-0.6, -0.6), MotorState.NORMAL, 1.0),  # 1.2 < 1.5
+        ((np.nan, -2.0), MotorState.NORMAL, 1.0),
+    ]
+    dw = np.array([c[0][0] * bw for c in cases])
+    di = np.array([c[0][1] * bi for c in cases])
+    states, depths = agreeing_departures(dw, di, bw, np.full(dw.size, bi), 1.5)
+    for (shares, state, depth), got, got_depth in zip(cases, states, depths):
+        assert MotorState(int(got)) == state, shares
+        assert got_depth == pytest.approx(depth), shares

@@ -40,6 +40,9 @@ def test_tuned_profile_has_no_false_event_on_its_flights_and_splits_the_stalls(c
     assert 0 < profile.speed_band_rad_s < 200 and all(w > 0 for _, w in profile.current_band_a)
     assert result.report["rounds"][-1]["false_events"] == 0
     assert dict(profile.persistence.announce_s)["SLOW"] >= 1.0  # the base's minimum is kept
+    # the slow look's share of the bands: its averages are quieter than the fast look's, so it is narrower
+    assert 0.2 < profile.slow_band_fraction < 1.0
+    assert result.report["slow_look"]["samples"] > 1000
     for flight in calm_flights:
         diagnosis = diagnose(flight.table, params, profile)
         s = score({k: diagnosis[k] for k in diagnosis.names}, flight.truth)

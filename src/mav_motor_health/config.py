@@ -264,6 +264,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             free_speed_headroom_fraction=p.number("free_speed_headroom_fraction", 0.0) or 0.5,
             stop_speed_fraction=p.number("stop_speed_fraction", 0.0, minimum=0.0, maximum=0.99),
             joint_band_sum=p.number("joint_band_sum", 0.0, minimum=0.0, maximum=2.0),
+            slow_band_fraction=p.number("slow_band_fraction", 0.0, minimum=0.0, maximum=1.0),
             min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
             activity_band=activity_band or (),  # type: ignore[arg-type]
             steady=SteadyRule(
@@ -277,6 +278,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
                 residual_tau_max_s=steady.number(
                     "residual_tau_max_s", 2.0, minimum=0.0, maximum=10.0, unit="s"
                 ),
+                slow_factor=steady.number("slow_factor", 0.0, minimum=0.0, maximum=100.0),
             ),
             plausibility=PlausibilityRule(
                 **{
@@ -324,6 +326,7 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"speed_only_band_frac = {profile.speed_only_band_frac!r}",
         f"free_speed_headroom_fraction = {profile.free_speed_headroom_fraction!r}",
         f"joint_band_sum = {profile.joint_band_sum!r}",
+        f"slow_band_fraction = {profile.slow_band_fraction!r}",
         f"stop_speed_fraction = {profile.stop_speed_fraction!r}",
         f"min_command = {profile.min_command!r}",
     ]
@@ -341,6 +344,7 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"activity_tau_s = {profile.steady.activity_tau_s!r}",
         f"activity_ref_v = {profile.steady.activity_ref_v!r}",
         f"residual_tau_max_s = {profile.steady.residual_tau_max_s!r}",
+        f"slow_factor = {profile.steady.slow_factor!r}",
         "",
         "[persistence]",
         f"default_announce_s = {profile.persistence.default_announce_s!r}",

@@ -250,7 +250,9 @@ def test_sim_behind_mavproxy_as_router(broker, mavproxy_router):
                     10,
                     "the STATUSTEXT through MAVProxy at the vehicle",
                 )
-                assert agent.tracker.autopilot == "ardupilot"
+                # the vehicle's HEARTBEAT (1 Hz) through the router names the autopilot; the stall may be
+                # announced before the first one arrives
+                await until(lambda: agent.tracker.autopilot == "ardupilot", 5, "the autopilot identified")
 
     try:
         asyncio.run(main())

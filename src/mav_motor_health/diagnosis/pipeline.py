@@ -31,7 +31,7 @@ from .profile import ThresholdProfile
 from .stall import StallCarry, stall_mean
 from .states import MotorState
 from .steady import SteadyCarry, steady_mask, warm_mask
-from .tree import classify_depth
+from .tree import agreeing_departures, classify_depth
 
 __all__ = ["DIAGNOSIS_COLUMNS", "MotorCarry", "StreamingDiagnoser", "diagnose", "diagnose_motor"]
 
@@ -67,6 +67,8 @@ class MotorCarry:
     persistence: PersistenceCarry = field(default_factory=PersistenceCarry)
     balance: BalanceCarry = field(default_factory=BalanceCarry)
     stall: StallCarry = field(default_factory=StallCarry)
+    slow_omega: ResponseCarry = field(default_factory=ResponseCarry)
+    slow_current: ResponseCarry = field(default_factory=ResponseCarry)
 
 
 def diagnose_motor(
@@ -99,6 +101,9 @@ def diagnose_motor(
     rule = profile.steady
     balance_carry = carry.balance
     stall_carry = carry.stall
+    slow_carries = (carry.slow_omega, carry.slow_current)
+    slow: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]] | None = None
+    stalled_like: NDArray[np.bool_] | None = None
     activity: NDArray[np.float64] | None = None
     judged_v = v
     if rule.kind == "balance":
@@ -140,6 +145,7 @@ def diagnose_motor(
             with np.errstate(divide="ignore", invalid="ignore"):
                 bus_v = np.where(cmd > 0.05, v / cmd, np.nan)  # the input is command × bus voltage
             at_idle = judged_v < profile.min_command * bus_v
+        slow_on = rule.slow_factor > 0
         warm, steady_carry = warm_mask(
             t,
             v,
@@ -149,8 +155,21 @@ def diagnose_motor(
             carry.steady,
             start_settle_s=3.0 * rule.activity_tau_s,  # the activity's low-pass has to fill up first
             restart=at_idle,
+            also_settle_s=rule.slow_factor * rule.settle_s if slow_on else None,
         )
+        if slow_on:
+            warm, slow_warm = warm[0], warm[1]
         steady = warm & np.isfinite(v) & np.isfinite(omega_in)
+        if slow_on:
+            # The slow look: the deviations averaged slow_factor times longer, judged as long after a step
+            slow_tau = rule.slow_factor * bal.tau_s
+            slow_w, slow_carry_w = first_order_response(t, bal.delta_omega_rad_s, slow_tau, carry.slow_omega)
+            slow_i, slow_carry_i = first_order_response(t, bal.delta_current_a, slow_tau, carry.slow_current)
+            # only where the low-pass is not already lengthened by the activity (calm air): in gusts the
+            # fast look averages long already, and a slower one would hold every gust's upset for seconds
+            calm = bal.tau_s <= rule.residual_tau_s
+            slow = (slow_w, slow_i, slow_warm & steady & ~stalled_like & calm)
+            slow_carries = (slow_carry_w, slow_carry_i)
         response_carry = carry.response
         speed_carry, current_carry = carry.speed_residual, carry.current_residual
         omega_expected = omega_pred
@@ -194,6 +213,8 @@ def diagnose_motor(
     if extra_flags is not None:
         flags = flags | extra_flags
     current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_a)
+    speed_band = profile.speed_band(activity)
+    current_band = profile.current_halfwidth_a(judged_v, activity)
     state, depth = classify_depth(
         profile,
         omega_rad_s=omega_seen,
@@ -209,7 +230,25 @@ def diagnose_motor(
         # a low-passed deviation, not a measured speed: its band is the deviation's noise, which the
         # physical cap does not bound, so it keeps the full band.
         omega_free_rad_s=None if rule.kind == "balance" else v / params.k_e,
+        bands=(speed_band, current_band),
     )
+    if slow is not None and profile.slow_band_fraction > 0:
+        # Where the tree sees nothing, a small lasting departure may still show in the longer averages:
+        # named where speed and current agree on a fault, against the narrowed bands
+        slow_w, slow_i, ready = slow
+        candidates = ready & (state == MotorState.NORMAL) & current_trusted
+        if np.any(candidates):
+            fraction = profile.slow_band_fraction
+            slow_state, slow_depth = agreeing_departures(
+                slow_w,
+                slow_i,
+                fraction * np.asarray(speed_band, dtype=float),
+                fraction * current_band,
+                profile.joint_band_sum or 2.0,
+            )
+            use = candidates & (slow_state != MotorState.NORMAL)
+            state[use] = slow_state[use]
+            depth[use] = slow_depth[use]
     state[(flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT  # never a motor fault from a bad sensor
     eligible = (steady | np.isin(state, _TRANSIENT_OK)) & (state != MotorState.NO_DATA)
     if command is not None and profile.min_command > 0:
@@ -238,10 +277,13 @@ def diagnose_motor(
         "sensor_flags": flags,
         "omega_judged_rad_s": omega_seen,
         "current_judged_a": current_seen,
-        "speed_band_rad_s": np.broadcast_to(profile.speed_band(activity), t.shape).astype(float),
-        "current_band_a": profile.current_halfwidth_a(judged_v, activity),
+        "speed_band_rad_s": np.broadcast_to(speed_band, t.shape).astype(float),
+        "current_band_a": current_band,
         "input_activity_v": np.full(t.shape, np.nan) if activity is None else activity,
         "depth": depth,
+        "omega_slow_judged_rad_s": np.full(t.shape, np.nan) if slow is None else omega_pred + slow[0],
+        "current_slow_judged_a": np.full(t.shape, np.nan) if slow is None else current_pred + slow[1],
+        "slow_ready": np.zeros(t.shape, dtype=bool) if slow is None else slow[2],
     }
     new_carry = MotorCarry(
         steady=steady_carry,
@@ -252,6 +294,8 @@ def diagnose_motor(
         persistence=persistence_carry,
         balance=balance_carry,
         stall=stall_carry,
+        slow_omega=slow_carries[0],
+        slow_current=slow_carries[1],
     )
     return columns, new_carry
 
@@ -330,6 +374,9 @@ def diagnose(
         "current_band_a": np.full(n, np.nan),
         "input_activity_v": np.full(n, np.nan),
         "depth": np.ones(n),
+        "omega_slow_judged_rad_s": np.full(n, np.nan),
+        "current_slow_judged_a": np.full(n, np.nan),
+        "slow_ready": np.zeros(n, dtype=bool),
     }
     motors = ordered["motor"]
 
@@ -378,6 +425,9 @@ def diagnose(
         current_band_a=out["current_band_a"],
         input_activity_v=out["input_activity_v"],
         depth=out["depth"],
+        omega_slow_judged_rad_s=out["omega_slow_judged_rad_s"],
+        current_slow_judged_a=out["current_slow_judged_a"],
+        slow_ready=out["slow_ready"],
     )
     for name in ordered.names:
         result.setdefault(name, ordered[name])

@@ -42,7 +42,9 @@ class SteadyRule:
     ``max_gap_s`` of the persistence rule. ``activity_tau_s`` is the window of the input activity that
     widens the bands (the profile's ``activity_band``) and, with
     ``activity_ref_v`` > 0, lengthens the low-pass to ``residual_tau_s·activity/activity_ref_v`` (at most
-    ``residual_tau_max_s``).
+    ``residual_tau_max_s``). ``slow_factor`` > 0 (≥ 1) adds a slow look (balance rule only): the
+    deviations low-passed again with ``slow_factor`` times that time constant, judged ``slow_factor`` ×
+    ``settle_s`` after a step, against the bands narrowed to the profile's ``slow_band_fraction``.
     """
 
     step_v: float = 0.2
@@ -53,8 +55,13 @@ class SteadyRule:
     activity_tau_s: float = 0.5
     activity_ref_v: float = 0.0
     residual_tau_max_s: float = 2.0
+    slow_factor: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (self.slow_factor == 0 or self.slow_factor >= 1):
+            raise ConfigError(
+                f"{self.slow_factor!r}", key="steady.slow_factor", expected="a factor >= 1, or 0 (off)"
+            )
         if self.kind == "balance" and not self.residual_tau_s > 0:
             raise ConfigError(
                 f"{self.residual_tau_s!r}",
@@ -153,6 +160,9 @@ class ThresholdProfile:
     fault moves them, by shares of their bands that add up to at least c, that fault is named even if
     neither leaves its band (two departures that agree need less of each; see :mod:`.tree`). 0, the
     default: off, the paper's tree.
+
+    ``slow_band_fraction`` (0 < f ≤ 1, or 0): the share of the bands that the slow look of the balance
+    rule (``steady.slow_factor``) judges its longer averages against; set by tuning. 0: no slow look.
     """
 
     name: str
@@ -166,6 +176,7 @@ class ThresholdProfile:
     speed_only_band_frac: float = 0.15
     free_speed_headroom_fraction: float = 0.5
     joint_band_sum: float = 0.0
+    slow_band_fraction: float = 0.0
     min_command: float = 0.0
     activity_band: tuple[tuple[float, float, float], ...] = ()
     steady: SteadyRule = field(default_factory=SteadyRule)
@@ -214,6 +225,12 @@ class ThresholdProfile:
                 f"{self.joint_band_sum!r}",
                 key="joint_band_sum",
                 expected="a sum of band shares between 1 and 2, or 0 (off)",
+            )
+        if not 0 <= self.slow_band_fraction <= 1:
+            raise ConfigError(
+                f"{self.slow_band_fraction!r}",
+                key="slow_band_fraction",
+                expected="a share 0 < f <= 1 of the bands, or 0 (no slow look)",
             )
         band = self.current_band_a
         if len(band) < 1 or any(len(p) != 2 for p in band):

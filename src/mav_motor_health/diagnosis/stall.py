@@ -41,6 +41,8 @@ def stall_mean(
     n = i.size
     if n == 0:
         return np.zeros(0), carry
+    if not carry.stalled and not run.any():  # the usual case: no stall at all
+        return np.full(n, np.nan), StallCarry()
     previous = np.concatenate([[carry.stalled], run[:-1]])
     begins = run & ~previous
     run_id = np.cumsum(begins)  # 0: the run carried in (if any), k: the k-th run begun in this call

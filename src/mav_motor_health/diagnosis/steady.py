@@ -60,17 +60,19 @@ def warm_mask(
     carry: SteadyCarry = SteadyCarry(),
     start_settle_s: float = 0.0,
     restart: NDArray[np.bool_] | None = None,
+    also_settle_s: float | None = None,
 ) -> tuple[NDArray[np.bool_], SteadyCarry]:
     """For the averaging rule (``kind = "balance"``): True once samples have come for
     ``start_settle_s`` (at least ``settle_s``) without a gap longer than ``max_gap_s``, and for
     ``settle_s`` since the last input step larger than ``step_v`` (per sample): the low-passes then hold
     samples of one operating point, or of an input that moves steadily, not the sampled edge of a step.
     ``restart`` marks samples that count as a step whatever the input did (the pipeline: a motor at idle,
-    whose low-passes are full of spin-down and idle when it comes back)."""
+    whose low-passes are full of spin-down and idle when it comes back). With ``also_settle_s`` the result
+    has two rows: the mask for ``settle_s`` and the one for ``also_settle_s`` (the slow look's wait)."""
     t = np.asarray(time_s, dtype=float)
     v = np.asarray(voltage_v, dtype=float)
     if t.size == 0:
-        return np.zeros(0, dtype=bool), carry
+        return np.zeros((0,) if also_settle_s is None else (2, 0), dtype=bool), carry
     previous_t = np.concatenate([[carry.last_time_s], t[:-1]])
     previous_v = np.concatenate([[carry.last_voltage_v], v[:-1]])
     start = ~(t - previous_t <= max_gap_s)  # the first sample ever (NaN before it) starts a stream
@@ -84,6 +86,9 @@ def warm_mask(
         1:
     ]
     warm = (t - last_step >= settle_s) & (t - last_start >= max(settle_s, start_settle_s))
+    if also_settle_s is not None:  # a second, longer wait after the same steps and starts
+        also = (t - last_step >= also_settle_s) & (t - last_start >= max(also_settle_s, start_settle_s))
+        warm = np.stack([warm, also])
     last_v = float(v[-1]) if np.isfinite(v[-1]) else carry.last_voltage_v
     return warm, SteadyCarry(
         last_voltage_v=last_v,

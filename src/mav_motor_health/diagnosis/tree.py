@@ -84,7 +84,7 @@ from numpy.typing import ArrayLike, NDArray
 from .profile import ThresholdProfile
 from .states import MotorState
 
-__all__ = ["classify", "classify_depth"]
+__all__ = ["agreeing_departures", "classify", "classify_depth"]
 
 
 def classify(
@@ -139,8 +139,12 @@ def classify_depth(
     omega_expected_rad_s: ArrayLike | None = None,
     omega_free_rad_s: ArrayLike | None = None,
     activity_v: ArrayLike | None = None,
+    bands: tuple[NDArray[np.float64] | float, NDArray[np.float64]] | None = None,
 ) -> tuple[NDArray[np.int8], NDArray[np.float64]]:
-    """:func:`classify`, and how deep in its state each sample is (see "Depth"): state codes, depths."""
+    """:func:`classify`, and how deep in its state each sample is (see "Depth"): state codes, depths.
+
+    ``bands`` (speed, current) are the profile's bands at these samples if the caller has them already
+    (the pipeline, which also reports them); None: computed here."""
     w, w_model, i, i_model, v = np.broadcast_arrays(
         *(
             np.asarray(x, dtype=float)
@@ -148,8 +152,10 @@ def classify_depth(
         )
     )
     activity = None if activity_v is None else np.broadcast_to(np.asarray(activity_v, dtype=float), w.shape)
-    band_i = profile.current_halfwidth_a(v, activity)
-    band_w = profile.speed_band(activity)
+    if bands is None:
+        band_w, band_i = profile.speed_band(activity), profile.current_halfwidth_a(v, activity)
+    else:
+        band_w, band_i = bands
     split = np.broadcast_to(profile.stall_split(bus_voltage_v), w.shape)
 
     speed_low = w < w_model - band_w
@@ -204,6 +210,13 @@ def classify_depth(
     # Depth: how many bands past the state's boundary the sample is (1 on the boundary; see "Depth")
     pair = joint if joint > 0 else np.inf
     depth = np.ones(w.shape)
+    if not np.any(
+        (state == MotorState.F1_1)
+        | (state == MotorState.F3_1)
+        | (state == MotorState.F4_1)
+        | (state == MotorState.UNKNOWN)
+    ):
+        return state, depth
     with np.errstate(invalid="ignore"):
         f11 = state == MotorState.F1_1
         depth[f11] = np.fmax(more, (slower + more) / pair)[f11]
@@ -215,4 +228,41 @@ def classify_depth(
         depth[unknown] = faster[unknown]
     depth = np.where(np.isfinite(depth), np.maximum(depth, 1.0), 1.0)
     depth[speed_only] = 1.0
+    return state, depth
+
+
+def agreeing_departures(
+    d_omega_rad_s: NDArray[np.float64],
+    d_current_a: NDArray[np.float64],
+    band_omega_rad_s: NDArray[np.float64] | float,
+    band_current_a: NDArray[np.float64],
+    band_sum: float,
+) -> tuple[NDArray[np.int8], NDArray[np.float64]]:
+    """F1.1, F3.1 or F4.1 where speed and current both depart the model that fault's way, by shares of
+    their bands adding up to ``band_sum``; else NORMAL (NaN: NORMAL). Returns the states and their depth
+    (the sum over ``band_sum``, 1 for NORMAL).
+
+    The balance rule's slow look judges its longer averages this way, against narrowed bands: a fault
+    moves both quantities, a model slightly off in one quantity at an unusual operating point moves one,
+    and the narrow bands would see that. As in the tree, a speed below its band with the current inside
+    its band is not F1.1.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share_w = d_omega_rad_s / band_omega_rad_s
+        share_i = d_current_a / band_current_a
+    state = np.full(share_w.shape, MotorState.NORMAL, dtype=np.int8)
+    depth = np.ones(share_w.shape)
+    total = np.abs(share_w) + np.abs(share_i)
+    with np.errstate(invalid="ignore"):
+        named = total >= band_sum
+        if not np.any(named):
+            return state, depth
+        slower, faster = share_w < 0, share_w > 0
+        # as in the tree: slower than the band with the current inside it is not friction (the paper's
+        # F4.1; here named only once the current falls too)
+        state[named & slower & (share_i > 0) & ((share_w >= -1) | (share_i >= 1))] = MotorState.F1_1
+        state[named & slower & (share_i < 0)] = MotorState.F4_1
+        state[named & faster & (share_i < 0)] = MotorState.F3_1
+    fault = state != MotorState.NORMAL
+    depth[fault] = total[fault] / band_sum
     return state, depth

@@ -114,6 +114,42 @@ def _activity_band(
     return base_w, base_i, tuple(table.values())
 
 
+def _slow_band_fraction(
+    results: Sequence[TelemetryTable],
+    masks: Sequence[tuple[NDArray[np.bool_], NDArray]],
+    quantile: float,
+    margin: float,
+    bins: int,
+) -> tuple[float, dict[str, Any]]:
+    """The share of the bands that the slow look needs: ``margin`` × the ``quantile`` of the healthy
+    samples' slow deviations in shares of their bands (the larger of speed and current), in the bin of
+    input activity where it is largest (the look's noise falls with averaging, its model error does not,
+    and neither by the same amount at every activity). At most 1."""
+    shares, acts = [], []
+    for r, (healthy, _) in zip(results, masks):
+        use = healthy & r["slow_ready"] & ((r["sensor_flags"] & CURRENT_UNTRUSTED) == 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w = np.abs(r["omega_slow_judged_rad_s"] - r["omega_model_rad_s"]) / r["speed_band_rad_s"]
+            i = np.abs(r["current_slow_judged_a"] - r["current_model_a"]) / r["current_band_a"]
+        share = np.fmax(w, i)
+        use &= np.isfinite(share)
+        shares.append(share[use])
+        acts.append(np.nan_to_num(r["input_activity_v"][use]))
+    share, act = np.concatenate(shares), np.concatenate(acts)
+    if share.size < 50:
+        raise ValueError(f"only {share.size} healthy samples for the slow look: too few to tune it")
+    edges = np.quantile(act, np.linspace(0, 1, bins + 1))
+    per_bin = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = (act >= lo) & (act <= hi)
+        if sel.sum() >= 50:
+            per_bin.append(
+                (round(float(np.median(act[sel])), 3), round(margin * _quantile(share[sel], quantile), 3))
+            )
+    fraction = min(1.0, max(f for _, f in per_bin))
+    return round(fraction, 3), {"samples": int(share.size), "fraction_by_activity": per_bin}
+
+
 def _false_runs(
     result: TelemetryTable, healthy: NDArray[np.bool_], max_gap_s: float, max_depth: float = 1.0
 ) -> dict[int, list[float]]:
@@ -271,6 +307,13 @@ def tune_profile(
         stall_split_ref_v=round(ref_v, 3),
         activity_band=activity_band,
     )
+    # 2b. the slow look's share of the bands, from the healthy samples' longer averages
+    slow_report: dict[str, Any] = {}
+    if base.steady.kind == "balance" and base.steady.slow_factor > 0:
+        fraction, slow_report = _slow_band_fraction(
+            [diagnose(f.table, params, profile) for f in flights], masks, quantile, margin, voltage_bins
+        )
+        profile = replace(profile, slow_band_fraction=fraction)
     # 3. persistence from the longest false runs, then verify (widen the bands if needed)
     rounds = []
     for _ in range(max_rounds):
@@ -337,5 +380,6 @@ def tune_profile(
         "margin": margin,
         "stall_currents": {k: v for k, v in stall.items()},
         "rounds": rounds,
+        "slow_look": slow_report,
     }
     return TuneResult(profile=profile, report=report)

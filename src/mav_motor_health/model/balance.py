@@ -109,6 +109,7 @@ class BalanceResult:
     current_mean_a: FloatArray  # low-passed measured current
     activity_v: FloatArray  # the input activity, scaled by √(sample interval / INTERVAL_REF_S)
     zigzag_v: FloatArray  # the input activity as measured (how far the input jumps between samples)
+    tau_s: FloatArray  # the low-pass time constant at each sample
 
 
 def input_activity(
@@ -239,6 +240,7 @@ def balance_deviations(
         current_mean_a=i_mean,
         activity_v=activity,
         zigzag_v=zigzag,
+        tau_s=np.broadcast_to(np.asarray(tau, dtype=float), t.shape),
     )
     new = BalanceCarry(
         voltage=c_v,
