@@ -281,3 +281,16 @@ def test_slow_look_names_small_lasting_faults_the_fast_look_misses(motor, small_
         assert np.any(r["announced"][sel] == code)
         others = (r["motor"] != case.motor) & r["steady"]
         assert np.all(r["announced"][others] == MotorState.NORMAL), case.name
+
+
+def test_without_a_slow_look_its_columns_are_empty(motor, flights) -> None:
+    """A balance profile without a slow look (slow_factor 0) judges with the fast look alone."""
+    from dataclasses import replace
+
+    shipped = load_profile("flight")
+    no_slow = replace(shipped, steady=replace(shipped.steady, slow_factor=0.0), slow_band_fraction=0.0)
+    r = diagnose(flights["F4.1"].table, motor, no_slow)
+    assert np.all(np.isnan(r["omega_slow_judged_rad_s"])) and np.all(np.isnan(r["current_slow_judged_a"]))
+    assert not r["slow_ready"].any()
+    with_slow = diagnose(flights["F4.1"].table, motor, shipped)
+    assert with_slow["slow_ready"].mean() > 0.5  # calm air: most judged samples get the slow look too

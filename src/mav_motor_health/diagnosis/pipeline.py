@@ -102,8 +102,7 @@ def diagnose_motor(
     balance_carry = carry.balance
     stall_carry = carry.stall
     slow_carries = (carry.slow_omega, carry.slow_current)
-    slow: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]] | None = None
-    stalled_like: NDArray[np.bool_] | None = None
+    slow: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]] | None = None  # the slow look
     activity: NDArray[np.float64] | None = None
     judged_v = v
     if rule.kind == "balance":
@@ -125,9 +124,10 @@ def diagnose_motor(
         # A stalled motor: the speed itself (the lower of the sample and its low-pass, so that a
         # start-up kick does not break the run and the first slow sample counts), and the current
         # averaged since the stall began (diagnosis/stall.py: the low-pass still holds the flight's).
-        slow = np.fmin(omega_in, bal.omega_mean_rad_s)
-        stalled_like = slow < np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * omega_pred)
-        omega_seen = np.where(stalled_like, slow, omega_pred + bal.delta_omega_rad_s)
+        stall_speed = np.fmin(omega_in, bal.omega_mean_rad_s)
+        stop_speed = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * omega_pred)
+        stalled_like = stall_speed < stop_speed
+        omega_seen = np.where(stalled_like, stall_speed, omega_pred + bal.delta_omega_rad_s)
         omega_seen = np.where(np.isfinite(omega_in), omega_seen, np.nan)
         stall_current, stall_carry = stall_mean(np.asarray(current_a, dtype=float), stalled_like, carry.stall)
         current_seen = np.where(stalled_like, stall_current, current_pred + bal.delta_current_a)

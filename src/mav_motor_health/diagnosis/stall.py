@@ -23,7 +23,7 @@ __all__ = ["StallCarry", "stall_mean"]
 
 @dataclass(frozen=True)
 class StallCarry:
-    """The running stall: sum and number of its finite current samples (count 0: no stall running)."""
+    """The running stall: sum and number of its finite current samples (``stalled`` False: none running)."""
 
     total_a: float = 0.0
     count: int = 0

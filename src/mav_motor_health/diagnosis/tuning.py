@@ -146,6 +146,8 @@ def _slow_band_fraction(
             per_bin.append(
                 (round(float(np.median(act[sel])), 3), round(margin * _quantile(share[sel], quantile), 3))
             )
+    if not per_bin:  # too few samples to split by activity
+        per_bin.append((round(float(np.median(act)), 3), round(margin * _quantile(share, quantile), 3)))
     fraction = min(1.0, max(f for _, f in per_bin))
     return round(fraction, 3), {"samples": int(share.size), "fraction_by_activity": per_bin}
 
