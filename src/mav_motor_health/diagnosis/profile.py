@@ -91,8 +91,8 @@ class PersistenceRule:
     ``default_announce_s`` applies to states not listed. Returning to NORMAL uses ``clear_s``. A run
     ends where eligible samples are more than ``max_gap_s`` apart (sparse quasi-steady samples in gusts).
 
-    ``max_depth`` (≥ 1): a sample d bands past its state's boundary (the tree's depth) counts its
-    interval d times, up to ``max_depth`` times: a deep departure is announced sooner than one on the
+    ``max_depth`` (≥ 1): a sample whose departure measures d bands (the tree's depth, 1 on its state's
+    boundary) counts its interval d times, up to ``max_depth`` times: a deep departure is announced sooner than one on the
     edge of its band, as a CUSUM detector does. 1 (the default): time alone.
     """
 

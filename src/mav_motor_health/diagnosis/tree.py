@@ -37,8 +37,8 @@ With ``stop_speed_fraction`` f > 0 (our addition, the flight profile: 0.25) the 
 is stopping (the other faults slow a motor by far less than three quarters), and a stalling rotor is named
 while it runs down through that speed instead of below 100 rad/s (docs/flight.md, section 2b).
 
-Depth (our addition, :func:`classify_depth`): how far past its state's boundary each sample is, in
-bands: for F1.1 the current's share of its band (or, for departures that agree, the sum of the shares
+Depth (our addition, :func:`classify_depth`): each sample's departure measured in bands, 1 on its
+state's boundary: for F1.1 the current's share of its band (or, for departures that agree, the sum of the shares
 over ``joint_band_sum``), for F4.1 the larger of the speed's and the current's share (or the sum over c),
 for F3.1 the lesser of the two (both must be out; or the sum over c), for UNKNOWN the speed's share; 1 on
 the boundary and for NORMAL, the stalls and the speed-only states. Persistence lets a deep sample count
@@ -207,7 +207,7 @@ def classify_depth(
         only[w > w_model + wide] = MotorState.FAST
         only[stopped] = MotorState.STALLED
         state[speed_only] = only[speed_only]
-    # Depth: how many bands past the state's boundary the sample is (1 on the boundary; see "Depth")
+    # Depth: the departure measured in bands (1 on the state's boundary; see "Depth")
     pair = joint if joint > 0 else np.inf
     depth = np.ones(w.shape)
     if not np.any(
