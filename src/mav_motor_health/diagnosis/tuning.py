@@ -16,8 +16,12 @@ those numbers off labelled flights instead:
    flight, the midpoint between the two kinds' currents; where the flights cover several bus voltages
    the split is fitted as ``a + b·(V_bus − V_ref)`` (a stalled motor's current scales with the voltage
    the ESC applies), else held constant.
+   **Slow look** (``steady.slow_factor`` > 0, balance rule): with the new bands, ``slow_band_fraction``
+   is ``margin ×`` the ``quantile`` of the healthy samples' slow deviations in shares of the bands, in
+   the activity bin where that is largest.
 3. **Persistence.** With the new bands, the runs of each false raw state on healthy samples (first to
-   last eligible sample of a run, which is what persistence times) set that state's hold time: at least
+   last eligible sample of a run, which is what persistence times; with ``max_depth`` > 1, Σ depth·Δt
+   over the run, as persistence counts it) set that state's hold time: at least
    ``margin`` × the longest, and at least the run length that the runs' exponential tail says comes
    ``false_rate_per_hour`` times per flight hour (0.01: one per hundred hours) on the healthy flights,
    so that a few minutes of training flight stand for the hours a fleet flies. With the ``balance`` rule
