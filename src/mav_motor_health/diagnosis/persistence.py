@@ -69,27 +69,26 @@ def announce(
             continues = start == 0 and run_state == candidate and te[0] - carry.last_eligible_s <= max_gap_s
             run_since = since if continues else float(te[start])
             candidate, since = run_state, run_since
+            # the hold each sample of the run has reached: its time since the run began, or Σ rate·Δt
             if rate is not None:
                 steps = np.diff(te[start:end], prepend=carry.last_eligible_s if continues else te[start])
                 held = (held_s if continues else 0.0) + np.cumsum(rate[idx[start:end]] * steps)
-                held_s = float(held[-1])
             else:
-                held_s = float(te[end - 1] - run_since)
+                held = te[start:end] - run_since
+            held_s = float(held[-1])
             if run_state == announced:
                 continue
-            if rate is not None:
-                need = np.full(end - start, float(hold_s[run_state]))
-                if hold_per_activity_s is not None and activity is not None:
-                    need += float(hold_per_activity_s[run_state]) * np.nan_to_num(activity[idx[start:end]])
+            hold = float(hold_s[run_state])
+            extra = None  # the hold added by the input activity at each sample
+            if hold_per_activity_s is not None and activity is not None and hold_per_activity_s[run_state]:
+                extra = float(hold_per_activity_s[run_state]) * np.nan_to_num(activity[idx[start:end]])
+            if rate is None and extra is None:
+                # a fixed hold in time: the first sample at or after it
+                j = start + int(np.searchsorted(te[start:end], run_since + hold, side="left"))
+            else:
+                need = hold if extra is None else hold + extra
                 reached = np.flatnonzero(held >= need)
                 j = start + (int(reached[0]) if reached.size else end - start)
-            elif hold_per_activity_s is None or activity is None or not hold_per_activity_s[run_state]:
-                due = run_since + float(hold_s[run_state])
-                j = start + int(np.searchsorted(te[start:end], due, side="left"))
-            else:
-                extra = float(hold_per_activity_s[run_state]) * np.nan_to_num(activity[idx[start:end]])
-                due_at = np.flatnonzero(te[start:end] - run_since >= float(hold_s[run_state]) + extra)
-                j = start + (int(due_at[0]) if due_at.size else end - start)
             if j < end:
                 announced = run_state
                 change_at.append(int(idx[j]))

@@ -92,8 +92,8 @@ class PersistenceRule:
     ends where eligible samples are more than ``max_gap_s`` apart (sparse quasi-steady samples in gusts).
 
     ``max_depth`` (≥ 1): a sample whose departure measures d bands (the tree's depth, 1 on its state's
-    boundary) counts its interval d times, up to ``max_depth`` times: a deep departure is announced sooner than one on the
-    edge of its band, as a CUSUM detector does. 1 (the default): time alone.
+    boundary) counts its interval d times, up to ``max_depth`` times: a deep departure is announced
+    sooner than one on the edge of its band, as a CUSUM detector does. 1 (the default): time alone.
     """
 
     default_announce_s: float = 0.1
