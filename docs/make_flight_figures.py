@@ -79,11 +79,14 @@ def balance_figure(flights, params) -> None:
         judged = r["steady"][sel]
         dw = (r["omega_judged_rad_s"] - r["omega_model_rad_s"])[sel]
         di = (r["current_judged_a"] - r["current_model_a"])[sel]
-        for ax, dev, band, unit in (
-            (axes[2 * row], dw, r["speed_band_rad_s"][sel], "Δω [rad/s]"),
-            (axes[2 * row + 1], di, r["current_band_a"][sel], "Δi [A]"),
+        speed_band = r["speed_band_rad_s"][sel]
+        for ax, dev, below, above, unit in (
+            (axes[2 * row], dw, speed_band, speed_band, "Δω [rad/s]"),
+            (axes[2 * row + 1], di, r["current_band_below_a"][sel], r["current_band_a"][sel], "Δi [A]"),
         ):
-            ax.fill_between(t, -band, band, color="tab:green", alpha=0.15, label="band (widened by activity)")
+            ax.fill_between(
+                t, -below, above, color="tab:green", alpha=0.15, label="band (widened by activity)"
+            )
             ax.plot(t, dev, ".", ms=3, color="0.6", label="not judged (warm-up, step)")
             ax.plot(t[judged], dev[judged], ".", ms=4, color="tab:blue", label="judged")
             ax.axvline(25.0, color="k", ls=":", lw=1)

@@ -151,17 +151,39 @@ def test_activity_band_covers_every_bin() -> None:
     rng = np.random.default_rng(11)
     activity = rng.uniform(0.05, 3.0, 20000)
     res_w = np.abs(rng.normal(0.0, 5.0 + 20.0 * activity))
-    res_i = np.abs(rng.normal(0.0, 0.1 + 0.5 * activity))
+    res_i = rng.normal(0.0, 0.1 + 0.5 * activity)  # signed
     base_w, base_i, rows = _activity_band(res_w, res_i, activity, 0.99, 1.5, 12)
     xs = [r[0] for r in rows]
     assert all(b > a for a, b in zip(xs, xs[1:]))
-    assert rows[-1][1] > 100.0 and rows[-1][2] > 2.0  # it widens where the noise grows
+    assert rows[-1][1] > 100.0 and rows[-1][2] > 2.0 and rows[-1][3] > 2.0  # it widens where the noise grows
     edges = np.quantile(activity, np.linspace(0, 1, 13))
     for lo, hi in zip(edges[:-1], edges[1:]):
         sel = (activity >= lo) & (activity <= hi)
         at = float(np.quantile(activity[sel], 0.9))
         assert base_w + np.interp(at, xs, [r[1] for r in rows]) >= 0.999 * 1.5 * np.quantile(res_w[sel], 0.99)
-        assert base_i + np.interp(at, xs, [r[2] for r in rows]) >= 0.999 * 1.5 * np.quantile(res_i[sel], 0.99)
+        # each side of the current band covers its own tail, within the calmest bin's own asymmetry
+        slack = 0.1 * base_i
+        above = base_i + np.interp(at, xs, [r[2] for r in rows])
+        below = base_i + np.interp(at, xs, [r[3] for r in rows])
+        assert above >= 1.5 * np.quantile(res_i[sel], 0.995) - slack
+        assert below >= 1.5 * np.quantile(-res_i[sel], 0.995) - slack
+
+
+def test_activity_band_reads_each_side_of_a_skewed_current_off_its_own_tail() -> None:
+    """In gusty air the healthy current dips below the model further than it rises above it: the side
+    below must widen more with the activity, the side above less, than one width for both would."""
+    rng = np.random.default_rng(12)
+    activity = rng.uniform(0.05, 3.0, 40000)
+    res_w = np.abs(rng.normal(0.0, 10.0, activity.size))
+    scale = 0.1 + 0.3 * activity
+    # a skewed residual: mean zero, a long tail below (exponential), a short one above
+    res_i = scale * (1.0 - rng.exponential(1.0, activity.size))
+    _, base_i, rows = _activity_band(res_w, res_i, activity, 0.99, 1.5, 12)
+    top = rows[-1]
+    assert top[3] > 1.5 * top[2]  # below the model it widens more than above
+    gusty = activity > 2.5
+    symmetric = 1.5 * np.quantile(np.abs(res_i[gusty]), 0.99)
+    assert base_i + top[2] < symmetric < base_i + top[3]
 
 
 def test_censored_mean_recovers_the_mean_of_a_current_read_unsigned() -> None:
@@ -244,6 +266,24 @@ def test_gusty_air_is_judged_not_waited_out(motor, gusty_flight) -> None:
     active = r["throttle"] >= 0.2
     assert np.mean(r["steady"][active]) > 0.5
     assert np.mean(r["state"][r["steady"]] == MotorState.NORMAL) > 0.99
+
+
+def test_a_stream_is_judged_once_its_low_passes_have_filled(motor, gusty_flight) -> None:
+    """A new stream waits three time constants of the activity's low-pass and of the deviations' low-pass
+    at that sample, which in gusty air the activity has lengthened (judged after the activity's wait
+    alone, the first seconds of gusty flights still held the take-off and flickered on healthy motors)."""
+    profile = load_profile("flight")
+    rule = profile.steady
+    r = diagnose(gusty_flight.table, motor, profile)
+    for m in r.motors():
+        sel = r["motor"] == m
+        t, activity = r["time_s"][sel], r["input_activity_v"][sel]
+        tau = np.clip(
+            rule.residual_tau_s * activity / rule.activity_ref_v, rule.residual_tau_s, rule.residual_tau_max_s
+        )
+        first = np.flatnonzero(r["steady"][sel])[0]
+        assert 3.0 * tau[first] > 3.0 * rule.activity_tau_s  # here the deviations' wait is the longer one
+        assert t[first] - t[0] >= 3.0 * tau[first] - 1e-9
 
 
 @pytest.fixture(scope="module")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -80,6 +81,9 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ("[profile]\nactivity_band = [[0.5, 10]]\n", "profile.activity_band"),
         ("[profile]\nactivity_band = [[1.0, 10, 0.1], [0.5, 20, 0.2]]\n", "profile.activity_band"),
         ("[profile]\nactivity_band = [[0.5, -10, 0.1]]\n", "profile.activity_band"),
+        ("[profile]\nactivity_band = [[0.5, 10, 0.1], [1.0, 20, 0.2, 0.3]]\n", "profile.activity_band"),
+        ("[profile]\nactivity_band = [[0.5, 10, 0.1, 0.2, 0.3]]\n", "profile.activity_band"),
+        ("[profile]\nactivity_band = [[0.5, 10, 0.1, -0.2]]\n", "profile.activity_band"),
         ('[steady]\nkind = "balance"\nresidual_tau_s = 0\n', "steady.residual_tau_s"),
         ("[persistence]\nmax_depth = 0.5\n", "persistence.max_depth"),
         ("[steady]\nslow_factor = 0.5\n", "steady.slow_factor"),
@@ -137,3 +141,6 @@ def test_profile_dump_round_trip(tmp_path: Path) -> None:
     )
     path = write(tmp_path, dump_profile(tuned, {"tuned_on": "3 flights"}))
     assert load_profile(path) == tuned
+    # the current widened apart above and below the model (a fourth column)
+    sided = replace(tuned, activity_band=((0.1, 0.0, 0.0, 0.0), (0.8, 30.5, 0.2, 0.3), (2.5, 60.0, 0.9, 1.4)))
+    assert load_profile(write(tmp_path, dump_profile(sided))) == sided

@@ -350,3 +350,39 @@ def test_agreeing_departures_name_a_fault_only_where_both_depart_its_way() -> No
     for (shares, state, depth), got, got_depth in zip(cases, states, depths):
         assert MotorState(int(got)) == state, shares
         assert got_depth == pytest.approx(depth), shares
+
+
+def test_current_band_may_differ_above_and_below_the_model(paper_motor) -> None:
+    """With a fourth column in ``activity_band`` the current band widens apart on its two sides: a dip
+    that the wider side below takes in is NORMAL, the same rise above the model is F1.1; without
+    activity both sides are the base band."""
+    profile = ThresholdProfile(
+        name="sided",
+        speed_band_rad_s=20.0,
+        current_band_a=((4.0, 0.5), (11.0, 0.5)),
+        activity_band=((0.0, 0.0, 0.0, 0.0), (2.0, 0.0, 0.2, 1.0)),
+    )
+    assert profile.current_halfwidth_a(8.0, 2.0) == pytest.approx(0.7)
+    assert profile.current_halfwidth_a(8.0, 2.0, below=True) == pytest.approx(1.5)
+    assert profile.current_halfwidth_a(8.0, 1.0, below=True) == pytest.approx(1.0)
+    assert profile.current_halfwidth_a(8.0, None, below=True) == pytest.approx(0.5)
+    w, i = model_at(paper_motor, 8.0)
+    state = classify(
+        profile,
+        omega_rad_s=[w, w, w, w],
+        omega_model_rad_s=w,
+        current_a=[i - 1.2, i + 1.2, i - 1.2, i - 1.6],
+        current_model_a=i,
+        voltage_v=8.0,
+        activity_v=[2.0, 2.0, 0.0, 2.0],
+    )
+    assert list(state) == [MotorState.NORMAL, MotorState.F1_1, MotorState.F4_1, MotorState.F4_1]
+    # three columns: the one widening on both sides, as before
+    even = ThresholdProfile(
+        name="even", current_band_a=((4.0, 0.5),), activity_band=((0.0, 0.0, 0.0), (2.0, 0.0, 0.2))
+    )
+    assert (
+        even.current_halfwidth_a(8.0, 2.0, below=True)
+        == even.current_halfwidth_a(8.0, 2.0)
+        == pytest.approx(0.7)
+    )

@@ -198,14 +198,17 @@ def _toml_string(text: str) -> str:
 
 
 def _number_rows(
-    raw: object, path: Path, key: str, width: int, expected: str
+    raw: object, path: Path, key: str, width: int | tuple[int, ...], expected: str
 ) -> tuple[tuple[float, ...], ...] | None:
-    """A TOML list of rows of ``width`` numbers (``current_band_a``, ``activity_band``); None if absent."""
+    """A TOML list of rows of ``width`` numbers (``current_band_a``, ``activity_band``), or of one of the
+    widths given, the same for every row; None if absent."""
     if raw is None:
         return None
+    widths = (width,) if isinstance(width, int) else width
     ok = isinstance(raw, list) and all(
         isinstance(row, list)
-        and len(row) == width
+        and len(row) in widths
+        and len(row) == len(raw[0])
         and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in row)
         for row in raw
     )
@@ -244,8 +247,9 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
         p.raw("activity_band"),
         path,
         "profile.activity_band",
-        3,
-        "a list of [activity_v, speed_widening_rad_s, current_widening_a] triples of numbers",
+        (3, 4),
+        "a list of [activity_v, speed_widening_rad_s, current_widening_a] rows of numbers, or of "
+        "[activity_v, speed_widening_rad_s, current_above_a, current_below_a], all of one length",
     )
     announce = _label_numbers(pers.table("announce_s"), "s")
     per_activity = _label_numbers(pers.table("announce_per_activity_s"), "s per V")
@@ -266,7 +270,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             joint_band_sum=p.number("joint_band_sum", 0.0, minimum=0.0, maximum=2.0),
             slow_band_fraction=p.number("slow_band_fraction", 0.0, minimum=0.0, maximum=1.0),
             min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
-            activity_band=activity_band or (),  # type: ignore[arg-type]
+            activity_band=activity_band or (),
             steady=SteadyRule(
                 step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
                 settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
@@ -331,7 +335,7 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"min_command = {profile.min_command!r}",
     ]
     if profile.activity_band:
-        rows = ", ".join(f"[{a!r}, {w!r}, {i!r}]" for a, w, i in profile.activity_band)
+        rows = ", ".join("[" + ", ".join(repr(x) for x in row) + "]" for row in profile.activity_band)
         lines.append(f"activity_band = [{rows}]")
     lines += [
         "",

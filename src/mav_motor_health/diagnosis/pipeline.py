@@ -153,7 +153,8 @@ def diagnose_motor(
             profile.persistence.max_gap_s,
             step_v,
             carry.steady,
-            start_settle_s=3.0 * rule.activity_tau_s,  # the activity's low-pass has to fill up first
+            # the activity's low-pass has to fill up first, and the deviations' (longer in gusts)
+            start_settle_s=np.maximum(3.0 * rule.activity_tau_s, 3.0 * bal.tau_s),
             restart=at_idle,
             also_settle_s=rule.slow_factor * rule.settle_s if slow_on else None,
         )
@@ -215,6 +216,7 @@ def diagnose_motor(
     current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_a)
     speed_band = profile.speed_band(activity)
     current_band = profile.current_halfwidth_a(judged_v, activity)
+    current_band_below = profile.current_halfwidth_a(judged_v, activity, below=True)
     state, depth = classify_depth(
         profile,
         omega_rad_s=omega_seen,
@@ -230,7 +232,7 @@ def diagnose_motor(
         # a low-passed deviation, not a measured speed: its band is the deviation's noise, which the
         # physical cap does not bound, so it keeps the full band.
         omega_free_rad_s=None if rule.kind == "balance" else v / params.k_e,
-        bands=(speed_band, current_band),
+        bands=(speed_band, current_band, current_band_below),
     )
     if slow is not None and profile.slow_band_fraction > 0:
         # Where the tree sees nothing, a small lasting departure may still show in the longer averages:
@@ -243,7 +245,7 @@ def diagnose_motor(
                 slow_w,
                 slow_i,
                 fraction * np.asarray(speed_band, dtype=float),
-                fraction * current_band,
+                fraction * np.where(slow_i < 0, current_band_below, current_band),
                 profile.joint_band_sum or 2.0,
             )
             use = candidates & (slow_state != MotorState.NORMAL)
@@ -279,6 +281,7 @@ def diagnose_motor(
         "current_judged_a": current_seen,
         "speed_band_rad_s": np.broadcast_to(speed_band, t.shape).astype(float),
         "current_band_a": current_band,
+        "current_band_below_a": current_band_below,
         "input_activity_v": np.full(t.shape, np.nan) if activity is None else activity,
         "depth": depth,
         "omega_slow_judged_rad_s": np.full(t.shape, np.nan) if slow is None else omega_pred + slow[0],
@@ -372,6 +375,7 @@ def diagnose(
         "current_judged_a": np.full(n, np.nan),
         "speed_band_rad_s": np.full(n, np.nan),
         "current_band_a": np.full(n, np.nan),
+        "current_band_below_a": np.full(n, np.nan),
         "input_activity_v": np.full(n, np.nan),
         "depth": np.ones(n),
         "omega_slow_judged_rad_s": np.full(n, np.nan),
@@ -423,6 +427,7 @@ def diagnose(
         current_judged_a=out["current_judged_a"],
         speed_band_rad_s=out["speed_band_rad_s"],
         current_band_a=out["current_band_a"],
+        current_band_below_a=out["current_band_below_a"],
         input_activity_v=out["input_activity_v"],
         depth=out["depth"],
         omega_slow_judged_rad_s=out["omega_slow_judged_rad_s"],

@@ -163,6 +163,12 @@ class ThresholdProfile:
 
     ``slow_band_fraction`` (0 < f ≤ 1, or 0): the share of the bands that the slow look of the balance
     rule (``steady.slow_factor``) judges its longer averages against; set by tuning. 0: no slow look.
+
+    ``activity_band`` rows widen the bands with the input's activity (balance rule): ``[activity_v,
+    speed_widening_rad_s, current_widening_a]`` widens the current band alike on both sides; a fourth
+    number, ``[..., current_above_a, current_below_a]``, widens it above and below the model apart (in
+    gusty air the healthy current deviation is skewed, see docs/flight.md). Linear in activity, held at
+    the end rows.
     """
 
     name: str
@@ -178,7 +184,7 @@ class ThresholdProfile:
     joint_band_sum: float = 0.0
     slow_band_fraction: float = 0.0
     min_command: float = 0.0
-    activity_band: tuple[tuple[float, float, float], ...] = ()
+    activity_band: tuple[tuple[float, ...], ...] = ()
     steady: SteadyRule = field(default_factory=SteadyRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
@@ -200,17 +206,18 @@ class ThresholdProfile:
         if not self.stall_split_a > 0:
             raise ConfigError(f"{self.stall_split_a!r}", key="stall_split_a", expected="a current > 0 A")
         widen = self.activity_band
-        if any(len(row) != 3 for row in widen):
+        if widen and (len(widen[0]) not in (3, 4) or any(len(row) != len(widen[0]) for row in widen)):
             raise ConfigError(
                 f"{widen!r}",
                 key="activity_band",
-                expected="a list of [activity_v, speed_widening_rad_s, current_widening_a] triples",
+                expected="rows of [activity_v, speed_widening_rad_s, current_widening_a] (a fourth number: "
+                "the current's widening below the model, the third then above it), all of one length",
             )
         if any(b[0] <= a[0] for a, b in zip(widen, widen[1:])):
             raise ConfigError(
                 "activities must increase", key="activity_band", expected="increasing activities"
             )
-        if any(not (row[0] >= 0 and row[1] >= 0 and row[2] >= 0) for row in widen):
+        if any(not all(x >= 0 for x in row) for row in widen):
             raise ConfigError(
                 "values must be >= 0", key="activity_band", expected="activities and widenings >= 0"
             )
@@ -246,16 +253,17 @@ class ThresholdProfile:
             raise ConfigError("half-widths must be > 0 A", key="current_band_a", expected="half-widths > 0 A")
 
     def current_halfwidth_a(
-        self, voltage_v: ArrayLike, activity_v: ArrayLike | None = None
+        self, voltage_v: ArrayLike, activity_v: ArrayLike | None = None, *, below: bool = False
     ) -> NDArray[np.float64]:
         """Half-width of the current band at each input voltage (linear, held constant outside), widened
-        by the input activity when given."""
+        by the input activity when given: the side above the model, or with ``below`` the side below it
+        (the same unless ``activity_band`` has its fourth column)."""
         v = np.asarray(voltage_v, dtype=float)
         xs = [p[0] for p in self.current_band_a]
         ys = [p[1] for p in self.current_band_a]
         band = np.interp(v, xs, ys)
         if activity_v is not None and self.activity_band:
-            band = band + self._widening(activity_v, 2)
+            band = band + self._widening(activity_v, 3 if below and len(self.activity_band[0]) == 4 else 2)
         return band
 
     def speed_band(self, activity_v: ArrayLike | None = None) -> NDArray[np.float64] | float:
@@ -265,7 +273,8 @@ class ThresholdProfile:
         return self.speed_band_rad_s + self._widening(activity_v, 1)
 
     def _widening(self, activity_v: ArrayLike, column: int) -> NDArray[np.float64]:
-        """Column 1 (speed) or 2 (current) of ``activity_band`` at each activity (linear, held outside)."""
+        """Column 1 (speed), 2 (current; above the model with four columns) or 3 (current below the model)
+        of ``activity_band`` at each activity (linear, held outside)."""
         a = np.nan_to_num(np.asarray(activity_v, dtype=float))
         return np.interp(
             a, [row[0] for row in self.activity_band], [row[column] for row in self.activity_band]

@@ -58,7 +58,7 @@ def warm_mask(
     max_gap_s: float,
     step_v: NDArray[np.float64] | float,
     carry: SteadyCarry = SteadyCarry(),
-    start_settle_s: float = 0.0,
+    start_settle_s: NDArray[np.float64] | float = 0.0,
     restart: NDArray[np.bool_] | None = None,
     also_settle_s: float | None = None,
 ) -> tuple[NDArray[np.bool_], SteadyCarry]:
@@ -85,9 +85,11 @@ def warm_mask(
     last_step = np.maximum.accumulate(np.concatenate([[carry.last_step_time_s], np.where(step, t, -np.inf)]))[
         1:
     ]
-    warm = (t - last_step >= settle_s) & (t - last_start >= max(settle_s, start_settle_s))
+    warm = (t - last_step >= settle_s) & (t - last_start >= np.maximum(settle_s, start_settle_s))
     if also_settle_s is not None:  # a second, longer wait after the same steps and starts
-        also = (t - last_step >= also_settle_s) & (t - last_start >= max(also_settle_s, start_settle_s))
+        also = (t - last_step >= also_settle_s) & (
+            t - last_start >= np.maximum(also_settle_s, start_settle_s)
+        )
         warm = np.stack([warm, also])
     last_v = float(v[-1]) if np.isfinite(v[-1]) else carry.last_voltage_v
     return warm, SteadyCarry(

@@ -26,6 +26,10 @@ whose load torque falls as the blade length to the 5th power but whose speed ris
 motor's resistance is small, :mod:`..model.balance`). c = 0 (the default, and the testbed profile): the
 paper's tree.
 
+"Current low" and "current high" may use different widths: a profile whose ``activity_band`` has a
+fourth column widens the current band apart below and above the model (in gusty air the healthy current
+deviation is skewed; docs/flight.md, section 2b). The shares below the model are taken of the side below.
+
 Where the current is absent or not trusted (``current_trusted`` False), only speed is used: ``STALLED``
 (F2.1 or F4.2) below the stop speed, ``SLOW`` (F1.1 or F4.1) far below the model speed, ``FAST`` (F3.1)
 far above it, else ``NORMAL``: the states name the faults that speed alone cannot tell apart. "Far" is
@@ -139,12 +143,12 @@ def classify_depth(
     omega_expected_rad_s: ArrayLike | None = None,
     omega_free_rad_s: ArrayLike | None = None,
     activity_v: ArrayLike | None = None,
-    bands: tuple[NDArray[np.float64] | float, NDArray[np.float64]] | None = None,
+    bands: tuple[NDArray[np.float64] | float, NDArray[np.float64], NDArray[np.float64]] | None = None,
 ) -> tuple[NDArray[np.int8], NDArray[np.float64]]:
     """:func:`classify`, and how deep in its state each sample is (see "Depth"): state codes, depths.
 
-    ``bands`` (speed, current) are the profile's bands at these samples if the caller has them already
-    (the pipeline, which also reports them); None: computed here."""
+    ``bands`` (speed, current above the model, current below it) are the profile's bands at these samples
+    if the caller has them already (the pipeline, which also reports them); None: computed here."""
     w, w_model, i, i_model, v = np.broadcast_arrays(
         *(
             np.asarray(x, dtype=float)
@@ -153,9 +157,11 @@ def classify_depth(
     )
     activity = None if activity_v is None else np.broadcast_to(np.asarray(activity_v, dtype=float), w.shape)
     if bands is None:
-        band_w, band_i = profile.speed_band(activity), profile.current_halfwidth_a(v, activity)
+        band_w = profile.speed_band(activity)
+        band_i = profile.current_halfwidth_a(v, activity)
+        band_i_low = profile.current_halfwidth_a(v, activity, below=True)
     else:
-        band_w, band_i = bands
+        band_w, band_i, band_i_low = bands
     split = np.broadcast_to(profile.stall_split(bus_voltage_v), w.shape)
 
     speed_low = w < w_model - band_w
@@ -167,14 +173,14 @@ def classify_depth(
         narrowed = np.clip(profile.free_speed_headroom_fraction * headroom, 0.5 * band_w, band_w)
         band_up = np.where(np.isfinite(narrowed), narrowed, band_w)
     speed_high = w > w_model + band_up
-    current_low = i < i_model - band_i
+    current_low = i < i_model - band_i_low
     current_high = i > i_model + band_i
     # The departures in shares of their bands (departures that agree, and the depth)
     joint = profile.joint_band_sum
     with np.errstate(divide="ignore", invalid="ignore"):
         slower = np.maximum(w_model - w, 0.0) / band_w
         faster = np.maximum(w - w_model, 0.0) / band_up
-        less = np.maximum(i_model - i, 0.0) / band_i
+        less = np.maximum(i_model - i, 0.0) / band_i_low
         more = np.maximum(i - i_model, 0.0) / band_i
     # Rule 1 needs the model to expect a turning motor: an idle or disarmed motor is not a stalled one.
     expected = w_model if omega_expected_rad_s is None else np.broadcast_to(omega_expected_rad_s, w.shape)

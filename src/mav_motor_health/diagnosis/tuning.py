@@ -11,7 +11,10 @@ those numbers off labelled flights instead:
    The speed band is ``margin ×`` the ``quantile`` of |ω − ω_model|; the current band is the same per bin
    of input voltage, made non-decreasing in voltage, with the bins' centres as anchors. With the
    ``balance`` rule the bands widen with the input's activity: the widths come from the calmest bin of
-   activity, and each bin adds a row (activity, speed widening, current widening) to ``activity_band``.
+   activity, and each bin adds a row (activity, speed widening, current widening above the model, current
+   widening below it) to ``activity_band``. The current's two sides are read off their own tails: in
+   gusty air a healthy motor's current deviation is skewed (more and longer dips below the model than
+   rises above it), and one width for both would let the dips through as "current low".
 2. **Stall split.** The F2.1 and F4.2 currents after onset, below the stop speed, give one split per
    flight, the midpoint between the two kinds' currents; where the flights cover several bus voltages
    the split is fitted as ``a + b·(V_bus − V_ref)`` (a stalled motor's current scales with the voltage
@@ -93,28 +96,47 @@ def _activity_band(
     quantile: float,
     margin: float,
     bins: int,
-) -> tuple[float, float, tuple[tuple[float, float, float], ...]]:
+) -> tuple[float, float, tuple[tuple[float, float, float, float], ...]]:
     """Base speed and current widths from the calmest activity bin, and rows (activity, speed widening,
-    current widening) from every bin: anchored at the bin's 90th percentile of activity (most of the
-    bin judged with no more than its own widening), non-decreasing in activity."""
+    current widening above the model, current widening below it) from every bin: anchored at the bin's
+    90th percentile of activity (most of the bin judged with no more than its own widening),
+    non-decreasing in activity.
+
+    ``res_w`` may be unsigned; ``res_i`` is signed (measured minus model). Each side of the current band
+    is read off its own tail: ``margin`` × the ``(1 + quantile)/2`` quantile of the residuals above the
+    model, and of those below it, which for a symmetric residual is the ``quantile`` of |residual|. The
+    widenings are each side's growth over the calmest bin, whose base width is that of |residual|."""
+    side_q = 0.5 * (1.0 + quantile)
     edges = np.quantile(activity, np.linspace(0, 1, bins + 1))
-    rows: list[tuple[float, float, float]] = []
+    rows: list[tuple[float, float, float, float, float]] = []
     for lo, hi in zip(edges[:-1], edges[1:]):
         sel = (activity >= lo) & (activity <= hi)
         if sel.sum() >= 20:
             anchor = float(np.quantile(activity[sel], 0.9))
             rows.append(
-                (anchor, margin * _quantile(res_w[sel], quantile), margin * _quantile(res_i[sel], quantile))
+                (
+                    anchor,
+                    margin * _quantile(np.abs(res_w[sel]), quantile),
+                    margin * _quantile(np.abs(res_i[sel]), quantile),
+                    margin * _quantile(res_i[sel], side_q),
+                    margin * _quantile(-res_i[sel], side_q),
+                )
             )
     if not rows:
-        return margin * _quantile(res_w, quantile), margin * _quantile(res_i, quantile), ()
+        return margin * _quantile(np.abs(res_w), quantile), margin * _quantile(np.abs(res_i), quantile), ()
     speed = np.maximum.accumulate([r[1] for r in rows])
-    current = np.maximum.accumulate([r[2] for r in rows])
-    base_w, base_i = float(speed[0]), float(current[0])
-    table: dict[float, tuple[float, float, float]] = {}
-    for (anchor, _, _), w, i in zip(rows, speed, current):
-        key = round(anchor, 3)
-        table[key] = (key, round(float(w) - base_w, 3), round(float(i) - base_i, 4))
+    above = np.maximum.accumulate([r[3] for r in rows])
+    below = np.maximum.accumulate([r[4] for r in rows])
+    base_w, base_i = float(speed[0]), float(rows[0][2])
+    table: dict[float, tuple[float, float, float, float]] = {}
+    for row, w, up, down in zip(rows, speed, above, below):
+        key = round(row[0], 3)
+        table[key] = (
+            key,
+            round(float(w) - base_w, 3),
+            round(max(0.0, float(up - above[0])), 4),
+            round(max(0.0, float(down - below[0])), 4),
+        )
     return base_w, base_i, tuple(table.values())
 
 
@@ -134,7 +156,8 @@ def _slow_band_fraction(
         use = healthy & r["slow_ready"] & ((r["sensor_flags"] & CURRENT_UNTRUSTED) == 0)
         with np.errstate(divide="ignore", invalid="ignore"):
             w = np.abs(r["omega_slow_judged_rad_s"] - r["omega_model_rad_s"]) / r["speed_band_rad_s"]
-            i = np.abs(r["current_slow_judged_a"] - r["current_model_a"]) / r["current_band_a"]
+            di = r["current_slow_judged_a"] - r["current_model_a"]
+            i = np.abs(di) / np.where(di < 0, r["current_band_below_a"], r["current_band_a"])
         share = np.fmax(w, i)
         use &= np.isfinite(share)
         shares.append(share[use])
@@ -250,7 +273,7 @@ def tune_profile(
         use &= r["omega_model_rad_s"] >= base.stop_speed_rad_s
         # the measurement as the tree judged it (after the flight rule's residual low-pass)
         rw.append(np.abs(r["omega_judged_rad_s"] - r["omega_model_rad_s"])[use])
-        ri.append(np.abs(r["current_judged_a"] - r["current_model_a"])[use])
+        ri.append((r["current_judged_a"] - r["current_model_a"])[use])  # signed: the sides may differ
         rv.append(r["voltage_v"][use])
         activity = r.get("input_activity_v")
         ra.append(np.zeros(int(use.sum())) if activity is None else np.nan_to_num(activity[use]))
@@ -258,16 +281,22 @@ def tune_profile(
     if res_w.size < 50:
         raise ValueError(f"only {res_w.size} healthy steady samples: too few to tune bands")
     fit_activity = base.steady.kind == "balance" and bool(np.any(acts > 0))
-    activity_band: tuple[tuple[float, float, float], ...] = ()
+    activity_band: tuple[tuple[float, ...], ...] = ()
     if fit_activity:
-        # Bands that widen with the input's activity: widenings per activity bin (see _activity_band);
-        # the current band's voltage anchors are then read off the residuals less their bin's widening.
+        # Bands that widen with the input's activity: widenings per activity bin and side (see
+        # _activity_band); the current band's voltage anchors are then read off the residuals less
+        # their bin's widening on their side.
         speed_band, _, activity_band = _activity_band(res_w, res_i, acts, quantile, margin, 2 * voltage_bins)
         xs = [row[0] for row in activity_band]
         if xs:
-            res_i = np.maximum(res_i - np.interp(acts, xs, [row[2] for row in activity_band]), 0.0)
+            up = np.interp(acts, xs, [row[2] for row in activity_band])
+            down = np.interp(acts, xs, [row[3] for row in activity_band])
+            res_i = np.maximum(np.abs(res_i) - np.where(res_i < 0, down, up), 0.0)
+        else:
+            res_i = np.abs(res_i)
     else:
         speed_band = margin * _quantile(res_w, quantile)
+        res_i = np.abs(res_i)
     edges = np.quantile(volts, np.linspace(0, 1, voltage_bins + 1))
     anchors: list[tuple[float, float]] = []
     for lo, hi in zip(edges[:-1], edges[1:]):
@@ -375,7 +404,8 @@ def tune_profile(
             speed_band_rad_s=round(profile.speed_band_rad_s * 1.1, 3),
             current_band_a=tuple((v, round(w * 1.1, 4)) for v, w in profile.current_band_a),
             activity_band=tuple(
-                (a, round(w * 1.1, 3), round(i * 1.1, 4)) for a, w, i in profile.activity_band
+                (row[0], round(row[1] * 1.1, 3), *(round(i * 1.1, 4) for i in row[2:]))
+                for row in profile.activity_band
             ),
         )
     report = {
