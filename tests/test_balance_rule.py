@@ -8,12 +8,14 @@ import pytest
 
 from mav_motor_health.config import dump_profile, load_motor_params, load_profile
 from mav_motor_health.diagnosis.pipeline import StreamingDiagnoser, diagnose
+from mav_motor_health.diagnosis.plausibility import SensorIssue
 from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.diagnosis.steady import warm_mask
 from mav_motor_health.diagnosis.tuning import _activity_band
 from mav_motor_health.evaluation.campaign import FlightCase, run_flights
 from mav_motor_health.model.balance import balance_deviations, censored_mean, input_activity
 from mav_motor_health.model.equations import steady_state
+from mav_motor_health.telemetry.table import TelemetryTable
 
 
 @pytest.fixture(scope="module")
@@ -334,3 +336,64 @@ def test_without_a_slow_look_its_columns_are_empty(motor, flights) -> None:
     assert not r["slow_ready"].any()
     with_slow = diagnose(flights["F4.1"].table, motor, shipped)
     assert with_slow["slow_ready"].mean() > 0.5  # calm air: most judged samples get the slow look too
+
+
+def _with_battery_and_repeats(table: TelemetryTable) -> tuple[TelemetryTable, TelemetryTable]:
+    """The flight with a battery monitor (the ESC input currents' sum), and the same flight as a .tlog
+    reads it: ArduPilot streams every ESC's last packet in each ESC_TELEMETRY message, so between an
+    ESC's own samples come rows without speed or current, at the other ESCs' sample times."""
+    t, motors = table["time_s"], table["motor"]
+    times = np.unique(t)
+    battery = np.zeros(times.size)
+    for m in table.motors():
+        sel = np.flatnonzero(motors == m)
+        j = np.searchsorted(t[sel], times, side="right") - 1
+        battery += np.where(j >= 0, table["esc_current_a"][sel][np.maximum(j, 0)], 0.0)
+    cols = {n: table[n] for n in table.names}
+    cols["battery_current_a"] = battery[np.searchsorted(times, t)]
+    measured = TelemetryTable(cols, source="flight")
+    padded: dict[str, list] = {n: [] for n in cols}
+    for m in table.motors():
+        sel = np.flatnonzero(motors == m)
+        extra = np.setdiff1d(times[times > t[sel][0]], t[sel])
+        last = sel[np.searchsorted(t[sel], extra, side="right") - 1]  # the ESC's previous packet
+        for n in cols:
+            values = cols[n][last].astype(float)
+            if n in ("omega_rad_s", "current_a", "esc_current_a"):
+                values[:] = np.nan  # a repeated packet: no new measurement
+            elif n == "time_s":
+                values = extra
+            elif n == "battery_current_a":
+                values = battery[np.searchsorted(times, extra)]
+            padded[n].append(np.concatenate([cols[n][sel].astype(float), values]))
+    repeated = TelemetryTable({n: np.concatenate(v) for n, v in padded.items()}, source="flight.tlog")
+    repeated = TelemetryTable(
+        {**{n: repeated[n] for n in repeated.names}, "motor": repeated["motor"].astype(np.int64)},
+        source="flight.tlog",
+    )
+    return measured, repeated.sorted_by_motor_time()
+
+
+def test_rows_without_a_measurement_change_nothing(motor, gusty_flight) -> None:
+    """A .tlog's repeated ESC packets become rows without speed or current (telemetry/tlog.py). They are
+    not samples: the live agent skips them. Diagnosed with them, the flight's measured rows come out as
+    without them, and the rows read NO_DATA and keep the announced state. (Before this test the core
+    counted them, so that a 10 Hz ESC in 50 Hz messages looked like a 50 Hz one to the input activity,
+    and the ESC currents' sum took them as the ESC's latest reading, 0 A, and against the battery monitor
+    distrusted nearly every current of a live capture: its replay fell back to speed alone.)"""
+    profile = load_profile("flight")
+    measured, repeated = _with_battery_and_repeats(gusty_flight.table)
+    assert len(repeated) > 2 * len(measured)  # most rows are repeats, as in a live capture
+    plain = diagnose(measured, motor, profile)
+    padded = diagnose(repeated, motor, profile)
+    has = np.isfinite(padded["omega_rad_s"])
+    key = np.lexsort((plain["time_s"], plain["motor"]))
+    for name in ("state", "announced", "steady", "sensor_flags", "omega_judged_rad_s"):
+        np.testing.assert_array_equal(padded[name][has], plain[name][key], err_msg=name)
+    assert np.all(padded["state"][~has] == MotorState.NO_DATA)
+    for m in padded.motors():
+        sel = np.flatnonzero(padded["motor"] == m)
+        gaps = sel[~has[sel]]
+        previous = sel[has[sel]][np.searchsorted(sel[has[sel]], gaps) - 1]
+        np.testing.assert_array_equal(padded["announced"][gaps], padded["announced"][previous])
+    assert np.mean((plain["sensor_flags"] & SensorIssue.CURRENT_SUM) != 0) < 0.05

@@ -340,7 +340,7 @@ def _current_sum_flags(table: TelemetryTable, profile: ThresholdProfile) -> NDAr
     order = np.argsort(t, kind="stable")
     total = np.zeros(len(table))
     for motor in table.motors():
-        sel = np.flatnonzero(motors == motor)
+        sel = np.flatnonzero((motors == motor) & np.isfinite(esc))  # its readings, not the rows without one
         j = np.searchsorted(t[sel], t[order], side="right") - 1  # latest sample of this motor at each time
         held = np.where(j >= 0, esc[sel][np.maximum(j, 0)], np.nan)
         total += np.nan_to_num(held)
@@ -387,8 +387,19 @@ def diagnose(
     def part(values: NDArray | None, sel: NDArray) -> NDArray | None:
         return None if values is None else values[sel]
 
+    omega_all, current_all = ordered["omega_rad_s"], ordered["current_a"]
     for motor in ordered.motors():
-        sel = np.flatnonzero(motors == motor)
+        rows = np.flatnonzero(motors == motor)
+        # Rows without a measurement (an ESC slot that repeated its last packet in a .tlog, a gap in a
+        # log) are not samples: the live agent never sees them, and the core must not count them either
+        # (its input activity scales with the sample interval, and a 10 Hz ESC in 50 Hz messages would
+        # look like a 50 Hz one). They read NO_DATA and keep the state announced before them.
+        measured = np.isfinite(omega_all[rows]) | np.isfinite(current_all[rows])
+        sel, unmeasured = rows[measured], rows[~measured]
+        if unmeasured.size:
+            out["state"][unmeasured] = MotorState.NO_DATA
+        if sel.size == 0:
+            continue
         motor_params = params[motor] if isinstance(params, dict) else params
         context = None
         if motor_params.effects:
@@ -412,6 +423,11 @@ def diagnose(
         )
         for name, values in cols.items():
             out[name][sel] = values
+        if unmeasured.size:
+            before = np.searchsorted(sel, unmeasured) - 1  # the last measured row before each
+            out["announced"][unmeasured] = np.where(
+                before >= 0, out["announced"][sel[np.maximum(before, 0)]], MotorState.NORMAL
+            )
     result = {name: ordered[name] for name in ("time_s", "motor")}
     result.update(
         state=out["state"],

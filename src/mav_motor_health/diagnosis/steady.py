@@ -63,7 +63,8 @@ def warm_mask(
     also_settle_s: float | None = None,
 ) -> tuple[NDArray[np.bool_], SteadyCarry]:
     """For the averaging rule (``kind = "balance"``): True once samples have come for
-    ``start_settle_s`` (at least ``settle_s``) without a gap longer than ``max_gap_s``, and for
+    ``start_settle_s`` (per sample, like ``step_v``; at least ``settle_s``) without a gap longer than
+    ``max_gap_s``, and for
     ``settle_s`` since the last input step larger than ``step_v`` (per sample): the low-passes then hold
     samples of one operating point, or of an input that moves steadily, not the sampled edge of a step.
     ``restart`` marks samples that count as a step whatever the input did (the pipeline: a motor at idle,
