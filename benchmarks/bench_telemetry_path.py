@@ -1,0 +1,104 @@
+"""The flight profile on the same healthy flights as the simulator's table and as each log format carries
+them: how much the telemetry path costs.
+
+    PYTHONPATH=src python benchmarks/bench_telemetry_path.py [--seconds 60] [--seed 205]
+
+The benchmark flights (``bench_flight.py``) give the diagnosis each ESC sample with the motor command
+of the same instant. A log does not: a .tlog's ESC_TELEMETRY messages carry each ESC's *last* packet,
+without its time, beside the command of the message's moment (SERVO_OUTPUT_RAW); a .bin's ESC records
+have their own times, but the command (RCOU) is logged at its own rate and the reader takes the latest
+one. The balance rule needs the voltage the motor saw when it was measured, so a command up to a
+message interval off adds noise that the tuned bands do not cover.
+
+For a calm and a gusty healthy flight (``flight/healthy_calm``'s manoeuvres), this prints, per path,
+the share of judged samples that are NORMAL and the false fault events: the simulator's table (as
+``bench_flight.py`` sees it), CSV (the same), .bin with RCOU at 10 and 50 Hz, .tlog with
+ESC_TELEMETRY and SERVO_OUTPUT_RAW at 10 and 50 Hz.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "src"))
+
+from mav_motor_health.config import load_motor_params, load_profile  # noqa: E402
+from mav_motor_health.diagnosis import MotorState, diagnose  # noqa: E402
+from mav_motor_health.sim.engine import run_scenario  # noqa: E402
+from mav_motor_health.sim.scenario import load_scenario  # noqa: E402
+from mav_motor_health.sim.writers import write_record  # noqa: E402
+from mav_motor_health.telemetry import sources  # noqa: E402
+from mav_motor_health.telemetry.table import TelemetryTable  # noqa: E402
+
+PATHS = (
+    ("table", None, None),
+    ("csv", ".csv", 10.0),
+    ("bin, RCOU 10 Hz", ".bin", 10.0),
+    ("bin, RCOU 50 Hz", ".bin", 50.0),
+    ("tlog, 10 Hz", ".tlog", 10.0),
+    ("tlog, 50 Hz", ".tlog", 50.0),
+)
+
+
+def judged(result: TelemetryTable) -> tuple[float, int]:
+    """NORMAL share of the judged samples [%], and the announcements of a fault (every motor is healthy)."""
+    steady = result["steady"]
+    normal = 100.0 * float(np.mean(result["state"][steady] == MotorState.NORMAL))
+    events = 0
+    for motor in result.motors():
+        announced = result["announced"][result["motor"] == motor].astype(np.int64)
+        changed = np.flatnonzero(np.diff(announced) != 0) + 1
+        events += int(np.sum(~np.isin(announced[changed], [MotorState.NORMAL, MotorState.NO_DATA])))
+    return normal, events
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=60.0)
+    parser.add_argument("--seed", type=int, default=205)
+    args = parser.parse_args()
+    params = load_motor_params("paper_x2212")
+    profile = load_profile("flight")
+    base = load_scenario("flight/healthy_calm")
+    start = time.monotonic()
+    print(
+        f"healthy flights of {args.seconds:.0f} s (flight/healthy_calm manoeuvres, seed {args.seed}), profile flight"
+    )
+    print(f"{'turbulence':10s} {'path':16s} {'NORMAL':>8s} {'false events':>13s}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for turbulence in ("calm", "gusty"):
+            for name, ext, rate_hz in PATHS:
+                scenario = dataclasses.replace(
+                    base,
+                    seed=args.seed,
+                    duration_s=args.seconds,
+                    flight=dataclasses.replace(base.flight, turbulence=turbulence),
+                    esc_stream_hz=rate_hz or base.esc_stream_hz,
+                    log_hz=rate_hz or base.log_hz,
+                )
+                record = run_scenario(scenario)
+                if ext is None:  # as the benchmark flights see it (evaluation/campaign.py)
+                    columns = record.esc_columns()
+                    columns.pop("rpm", None)
+                    table = TelemetryTable(columns, source="simulator")
+                else:
+                    out, _ = write_record(
+                        record, Path(tmp) / f"{turbulence}_{name.split(',')[0]}{ext}", force=True
+                    )
+                    table = sources.read(out)
+                normal, events = judged(diagnose(table, params, profile))
+                print(f"{turbulence:10s} {name:16s} {normal:7.2f}% {events:13d}")
+    print(f"\n(benchmark took {time.monotonic() - start:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
