@@ -13,7 +13,8 @@ message interval off adds noise that the tuned bands do not cover.
 For a calm and a gusty healthy flight (``flight/healthy_calm``'s manoeuvres), this prints, per path,
 the share of judged samples that are NORMAL and the false fault events: the simulator's table (as
 ``bench_flight.py`` sees it), CSV (the same), .bin with RCOU at 10 and 50 Hz, .tlog with
-ESC_TELEMETRY and SERVO_OUTPUT_RAW at 10 and 50 Hz.
+ESC_TELEMETRY and SERVO_OUTPUT_RAW at 10, 50, 100 and 200 Hz (the ESCs themselves report at 10–50 Hz;
+the stream rate bounds how much older than its message's command a packet can be).
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ PATHS = (
     ("bin, RCOU 50 Hz", ".bin", 50.0),
     ("tlog, 10 Hz", ".tlog", 10.0),
     ("tlog, 50 Hz", ".tlog", 50.0),
+    ("tlog, 100 Hz", ".tlog", 100.0),
+    ("tlog, 200 Hz", ".tlog", 200.0),
 )
 
 

@@ -88,7 +88,9 @@ def test_servo_functions_map_outputs_to_motors_and_repeats_are_stale(synthetic_t
     # slot 3 (output 4) is motor 4.
     assert table.motors() == [1, 3, 4]
     m3, m1 = table.for_motor(3), table.for_motor(1)
-    fresh = np.arange(30) % 2 == 0
+    # every other message repeats the previous packet: stale once the count has been seen to move (as the
+    # live agent reads it); the second message, before that, cannot be told from a new packet
+    fresh = (np.arange(30) % 2 == 0) | (np.arange(30) == 1)
     np.testing.assert_allclose(
         m3["omega_rad_s"][fresh], (1000 + 10 * np.arange(30))[fresh] * 2 * math.pi / 60
     )
@@ -134,3 +136,44 @@ def test_px4_esc_status_frames_from_pymavlink_generated_dialect(tmp_path: Path) 
         np.testing.assert_allclose(rows["esc_current_a"], 1.5 + motor - 1)
         np.testing.assert_allclose(rows["bus_voltage_v"], 22.0)
     assert table.meta["vehicle"]["autopilot"] == 12  # MAV_AUTOPILOT_PX4
+
+
+def test_empty_slots_and_counts_that_never_move_are_read_as_the_agent_reads_them(tmp_path: Path) -> None:
+    """Before an ESC's first packet ArduPilot sends its slot as zeros: no sample (not a stopped motor). An
+    ESC whose packet count never moves is read in every message, as the agent reads it."""
+    from mav_motor_health.agent.samples import SampleAssembler
+
+    v2 = mav2.MAVLink(None, srcSystem=1, srcComponent=1)
+    out = bytearray(_record(0.0, v2.heartbeat_encode(13, 3, 128 | 1, 0, 4).pack(v2)))
+    frames = []
+    for k in range(20):
+        t = 0.05 * (k + 1)
+        servo = v2.servo_output_raw_encode(int(t * 1e6), 0, 1500, 1500, 1500, 1500, 0, 0, 0, 0)
+        started = k >= 5  # slot 0 reports from the sixth message on
+        esc = v2.esc_telemetry_1_to_4_encode(
+            [30 if started else 0, 31, 0, 0],
+            [1600 if started else 0, 1600, 0, 0],
+            [200 if started else 0, 210 + k, 0, 0],
+            [(k - 4) if started else 0, 0, 0, 0],  # slot 1's count never moves
+            [5000 + 10 * k if started else 0, 5100 + 10 * k, 0, 0],
+            [(k - 4) if started else 0, 0, 0, 0],
+        )
+        frames += [(t, servo), (t + 0.001, esc)]
+    for t, msg in frames:
+        out += _record(t, msg.pack(v2))
+    path = tmp_path / "slots.tlog"
+    path.write_bytes(bytes(out))
+    table = read_tlog(path)
+    m1, m2 = table.for_motor(1), table.for_motor(2)
+    assert np.isnan(m1["omega_rad_s"][:5]).all() and np.isfinite(m1["omega_rad_s"][5:]).all()
+    assert np.isfinite(m2["omega_rad_s"]).all()  # count stuck at 0, values moving: every message is read
+    # the agent's assembler gives the same samples
+    assembler = SampleAssembler(motors=4)
+    agent: dict[int, list[float]] = {1: [], 2: []}
+    for t, msg in frames:
+        decoded = v2.decode(bytearray(msg.pack(v2)))
+        for sample in assembler.feed(decoded, t):
+            if sample.motor in agent:
+                agent[sample.motor].append(sample.omega_rad_s)
+    np.testing.assert_allclose(agent[1], m1["omega_rad_s"][5:])
+    np.testing.assert_allclose(agent[2], m2["omega_rad_s"])

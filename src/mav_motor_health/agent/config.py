@@ -49,7 +49,8 @@ class AgentConfig:
     profile: ThresholdProfile = field(default_factory=lambda: load_profile("flight"))
     system_id: int = 0  # 0: take the autopilot's once it is found
     component_id: int = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
-    esc_rate_hz: float = 50.0
+    # ESC_TELEMETRY and SERVO_OUTPUT_RAW: each packet beside a command at most 5 ms newer (docs/agent.md)
+    esc_rate_hz: float = 200.0
     heartbeat_timeout_s: float = 3.0
     stale_s: float = 1.0
     batch_s: float = 0.1  # samples wait at most this long to be diagnosed together (0: one by one)
@@ -104,7 +105,7 @@ def load_agent_config(
         raise ConfigError(str(exc), path=where, key="link.connect") from None
     system_id = int(link.number("system_id", 0, minimum=0, maximum=255))
     component_id = int(link.number("component_id", 191, minimum=1, maximum=255))
-    esc_rate_hz = link.number("esc_rate_hz", 50.0, minimum=1.0, maximum=400.0, unit="Hz")
+    esc_rate_hz = link.number("esc_rate_hz", 200.0, minimum=1.0, maximum=400.0, unit="Hz")
     hb_timeout = link.number("heartbeat_timeout_s", 3.0, minimum=0.5, maximum=60.0, unit="s")
     link.done()
 

@@ -315,8 +315,21 @@ def read_tlog(path: str | Path) -> TelemetryTable:
             si = mavlink_esc.esc_fields_to_si(
                 rec["temperature"][:, j], rec["voltage"][:, j], rec["current"][:, j], rec["rpm"][:, j]
             )
+            # As the live agent (agent/samples.py): ArduPilot repeats an ESC's last values until a new
+            # packet comes; once the packet count has been seen to move, an unmoved count is a repeat (an
+            # ESC whose count never moves is read every time). A slot with count, speed, voltage and
+            # current all 0 has had no packet yet.
+            moved = np.zeros(len(count), dtype=bool)
+            moved[1:] = np.diff(count) != 0
+            seen_moving = np.maximum.accumulate(moved)
             stale = np.zeros(len(count), dtype=bool)
-            stale[1:] = np.diff(count) == 0  # the ESC sent nothing new: ArduPilot repeats the last values
+            stale[1:] = ~moved[1:] & seen_moving[:-1]
+            stale |= (
+                (count == 0)
+                & (rec["rpm"][:, j] == 0)
+                & (rec["voltage"][:, j] == 0)
+                & (rec["current"][:, j] == 0)
+            )
             omega, current = si["omega_rad_s"], si["esc_current_a"]
             omega[stale] = np.nan
             current[stale] = np.nan
