@@ -319,17 +319,20 @@ def read_tlog(path: str | Path) -> TelemetryTable:
             # packet comes; once the packet count has been seen to move, an unmoved count is a repeat (an
             # ESC whose count never moves is read every time). A slot with count, speed, voltage and
             # current all 0 has had no packet yet.
-            moved = np.zeros(len(count), dtype=bool)
-            moved[1:] = np.diff(count) != 0
-            seen_moving = np.maximum.accumulate(moved)
-            stale = np.zeros(len(count), dtype=bool)
-            stale[1:] = ~moved[1:] & seen_moving[:-1]
-            stale |= (
+            empty = (
                 (count == 0)
                 & (rec["rpm"][:, j] == 0)
                 & (rec["voltage"][:, j] == 0)
                 & (rec["current"][:, j] == 0)
             )
+            seen = np.flatnonzero(~empty)  # the slot's packets, first or repeated
+            moved = np.zeros(seen.size, dtype=bool)
+            moved[1:] = np.diff(count[seen]) != 0
+            seen_moving = np.maximum.accumulate(moved)
+            repeat = np.zeros(seen.size, dtype=bool)
+            repeat[1:] = ~moved[1:] & seen_moving[:-1]
+            stale = empty.copy()
+            stale[seen[repeat]] = True
             omega, current = si["omega_rad_s"], si["esc_current_a"]
             omega[stale] = np.nan
             current[stale] = np.nan
