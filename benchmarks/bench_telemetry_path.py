@@ -14,7 +14,10 @@ For a calm and a gusty healthy flight (``flight/healthy_calm``'s manoeuvres), th
 the share of judged samples that are NORMAL and the false fault events: the simulator's table (as
 ``bench_flight.py`` sees it), CSV (the same), .bin with RCOU at 10 and 50 Hz, .tlog with
 ESC_TELEMETRY and SERVO_OUTPUT_RAW at 10, 50, 100 and 200 Hz (the ESCs themselves report at 10–50 Hz;
-the stream rate bounds how much older than its message's command a packet can be).
+the stream rate bounds how much older than its message's command a packet can be). Then the fault flights
+of ``bench_flight.py`` (same seeds and motors) as the table and as a .tlog at 200 Hz, the rate the agent
+asks for, with the vehicle's battery monitor: mean accuracy after onset, detection time, NORMAL and false
+events per fault and turbulence level.
 """
 
 from __future__ import annotations
@@ -33,6 +36,8 @@ sys.path.insert(0, str(REPO / "src"))
 
 from mav_motor_health.config import load_motor_params, load_profile  # noqa: E402
 from mav_motor_health.diagnosis import MotorState, diagnose  # noqa: E402
+from mav_motor_health.evaluation.campaign import FAULTS, TURBULENCE_LEVELS, FlightCase, scenario_for  # noqa: E402
+from mav_motor_health.evaluation.score import score  # noqa: E402
 from mav_motor_health.sim.engine import run_scenario  # noqa: E402
 from mav_motor_health.sim.scenario import load_scenario  # noqa: E402
 from mav_motor_health.sim.writers import write_record  # noqa: E402
@@ -99,8 +104,50 @@ def main() -> int:
                     table = sources.read(out)
                 normal, events = judged(diagnose(table, params, profile))
                 print(f"{turbulence:10s} {name:16s} {normal:7.2f}% {events:13d}")
+        # 2. the benchmark's fault flights (bench_flight.py's seeds and motors) as the agent gets them: a
+        # .tlog streamed at the 200 Hz it asks for (with the vehicle's battery monitor), against the table
+        print("\nfault flights of bench_flight.py (2 per fault, fault at 25 s): table / .tlog at 200 Hz")
+        print(
+            f"{'turbulence':10s} {'fault':5s} {'accuracy':>17s} {'detect s':>17s} {'NORMAL':>17s} {'false':>7s}"
+        )
+        for k, turbulence in enumerate(TURBULENCE_LEVELS):
+            for j, fault in enumerate(FAULTS):
+                print(fault_row(turbulence, k, j, fault, params, profile, Path(tmp)))
     print(f"\n(benchmark took {time.monotonic() - start:.0f} s)")
     return 0
+
+
+def fault_row(turbulence: str, k: int, j: int, fault: str, params, profile, tmp: Path) -> str:
+    """The two flights of one fault and turbulence level: table against .tlog at 200 Hz."""
+    rows: dict[str, list] = {"table": [], "tlog": []}
+    for rep in range(2):
+        case = FlightCase(
+            turbulence,
+            2000 + 100 * k + 10 * j + rep,
+            50.0,
+            fault=fault,
+            motor=1 + (j + 2 * k + rep) % 6,
+            onset_s=25.0,
+        )
+        scenario = dataclasses.replace(scenario_for(case), esc_stream_hz=200.0, log_hz=200.0)
+        record = run_scenario(scenario)
+        columns = record.esc_columns()
+        columns.pop("rpm", None)
+        out, _ = write_record(record, tmp / f"{case.name}.tlog", force=True)
+        for name, table in (
+            ("table", TelemetryTable(columns, source="simulator")),
+            ("tlog", sources.read(out)),
+        ):
+            result = diagnose(table, params, profile)
+            rows[name].append(score({c: result[c] for c in result.names}, scenario.truth()))
+    cells = []
+    for attr in ("fault_accuracy_pct", "detection_s", "normal_accuracy_pct"):
+        pair = [
+            np.mean([np.nan if getattr(r, attr) is None else getattr(r, attr) for r in rows[n]]) for n in rows
+        ]
+        cells.append(f"{pair[0]:7.2f} / {pair[1]:7.2f}")
+    false = [sum(r.false_events for r in rows[n]) for n in rows]
+    return f"{turbulence:10s} {fault:5s} {cells[0]:>17s} {cells[1]:>17s} {cells[2]:>17s} {false[0]:3d} / {false[1]}"
 
 
 if __name__ == "__main__":
