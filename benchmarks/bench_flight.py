@@ -29,7 +29,13 @@ from mav_motor_health.commands.tune import campaign_cases
 from mav_motor_health.config import load_motor_params, load_profile
 from mav_motor_health.diagnosis import MotorState, diagnose
 from mav_motor_health.diagnosis.tuning import LabelledFlight
-from mav_motor_health.evaluation.campaign import FAULTS, TURBULENCE_LEVELS, FlightCase, run_flights
+from mav_motor_health.evaluation.campaign import (
+    FAULTS,
+    TURBULENCE_LEVELS,
+    FlightCase,
+    benchmark_fault_cases,
+    run_flights,
+)
 from mav_motor_health.evaluation.px4_baseline import Px4Baseline, detect, fit_baseline
 from mav_motor_health.evaluation.score import PAPER, score
 
@@ -84,21 +90,7 @@ def main() -> int:
     profile = load_profile(args.profile)
 
     # 1. faults at three turbulence levels (test seeds)
-    cases = []
-    for k, turbulence in enumerate(TURBULENCE_LEVELS):
-        for j, fault in enumerate(FAULTS):
-            for rep in range(2):
-                cases.append(
-                    FlightCase(
-                        turbulence,
-                        2000 + 100 * k + 10 * j + rep,
-                        50.0,
-                        fault=fault,
-                        motor=1 + (j + 2 * k + rep) % 6,
-                        onset_s=25.0,
-                    )
-                )
-    flights = run_flights(cases, args.jobs)
+    flights = run_flights(benchmark_fault_cases(), args.jobs)
     print(f"1. Faults in flight (test seeds; profile {args.profile})")
     print(f"{'turbulence':10s} {'fault':5s} {'accuracy':>9s} {'detect s':>9s} {'NORMAL':>8s} {'false':>5s}")
     detections = []

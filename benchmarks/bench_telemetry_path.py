@@ -35,8 +35,15 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
 from mav_motor_health.config import load_motor_params, load_profile  # noqa: E402
-from mav_motor_health.diagnosis import MotorState, diagnose  # noqa: E402
-from mav_motor_health.evaluation.campaign import FAULTS, TURBULENCE_LEVELS, FlightCase, scenario_for  # noqa: E402
+from mav_motor_health.diagnosis import diagnose  # noqa: E402
+from mav_motor_health.evaluation.campaign import (  # noqa: E402
+    FAULTS,
+    TURBULENCE_LEVELS,
+    FlightCase,
+    benchmark_fault_cases,
+    scenario_for,
+    table_columns,
+)
 from mav_motor_health.evaluation.score import score  # noqa: E402
 from mav_motor_health.sim.engine import run_scenario  # noqa: E402
 from mav_motor_health.sim.scenario import load_scenario  # noqa: E402
@@ -54,18 +61,6 @@ PATHS = (
     ("tlog, 100 Hz", ".tlog", 100.0),
     ("tlog, 200 Hz", ".tlog", 200.0),
 )
-
-
-def judged(result: TelemetryTable) -> tuple[float, int]:
-    """NORMAL share of the judged samples [%], and the announcements of a fault (every motor is healthy)."""
-    steady = result["steady"]
-    normal = 100.0 * float(np.mean(result["state"][steady] == MotorState.NORMAL))
-    events = 0
-    for motor in result.motors():
-        announced = result["announced"][result["motor"] == motor].astype(np.int64)
-        changed = np.flatnonzero(np.diff(announced) != 0) + 1
-        events += int(np.sum(~np.isin(announced[changed], [MotorState.NORMAL, MotorState.NO_DATA])))
-    return normal, events
 
 
 def main() -> int:
@@ -93,49 +88,42 @@ def main() -> int:
                     log_hz=rate_hz or base.log_hz,
                 )
                 record = run_scenario(scenario)
-                if ext is None:  # as the benchmark flights see it (evaluation/campaign.py)
-                    columns = record.esc_columns()
-                    columns.pop("rpm", None)
-                    table = TelemetryTable(columns, source="simulator")
+                if ext is None:  # as the benchmark flights see it
+                    table = TelemetryTable(table_columns(record), source="simulator")
                 else:
                     out, _ = write_record(
                         record, Path(tmp) / f"{turbulence}_{name.split(',')[0]}{ext}", force=True
                     )
                     table = sources.read(out)
-                normal, events = judged(diagnose(table, params, profile))
-                print(f"{turbulence:10s} {name:16s} {normal:7.2f}% {events:13d}")
+                result = diagnose(table, params, profile)
+                healthy = score({c: result[c] for c in result.names}, scenario.truth())
+                print(
+                    f"{turbulence:10s} {name:16s} {healthy.normal_accuracy_pct:7.2f}% {healthy.false_events:13d}"
+                )
         # 2. the benchmark's fault flights (bench_flight.py's seeds and motors) as the agent gets them: a
         # .tlog streamed at the 200 Hz it asks for (with the vehicle's battery monitor), against the table
         print("\nfault flights of bench_flight.py (2 per fault, fault at 25 s): table / .tlog at 200 Hz")
         print(
             f"{'turbulence':10s} {'fault':5s} {'accuracy':>17s} {'detect s':>17s} {'NORMAL':>17s} {'false':>7s}"
         )
-        for k, turbulence in enumerate(TURBULENCE_LEVELS):
-            for j, fault in enumerate(FAULTS):
-                print(fault_row(turbulence, k, j, fault, params, profile, Path(tmp)))
+        cases = benchmark_fault_cases()
+        for turbulence in TURBULENCE_LEVELS:
+            for fault in FAULTS:
+                pair = [c for c in cases if c.turbulence == turbulence and c.fault == fault]
+                print(fault_row(pair, params, profile, Path(tmp)))
     print(f"\n(benchmark took {time.monotonic() - start:.0f} s)")
     return 0
 
 
-def fault_row(turbulence: str, k: int, j: int, fault: str, params, profile, tmp: Path) -> str:
-    """The two flights of one fault and turbulence level: table against .tlog at 200 Hz."""
+def fault_row(cases: list[FlightCase], params, profile, tmp: Path) -> str:
+    """The flights of one fault and turbulence level: table against .tlog at 200 Hz."""
     rows: dict[str, list] = {"table": [], "tlog": []}
-    for rep in range(2):
-        case = FlightCase(
-            turbulence,
-            2000 + 100 * k + 10 * j + rep,
-            50.0,
-            fault=fault,
-            motor=1 + (j + 2 * k + rep) % 6,
-            onset_s=25.0,
-        )
+    for case in cases:
         scenario = dataclasses.replace(scenario_for(case), esc_stream_hz=200.0, log_hz=200.0)
         record = run_scenario(scenario)
-        columns = record.esc_columns()
-        columns.pop("rpm", None)
         out, _ = write_record(record, tmp / f"{case.name}.tlog", force=True)
         for name, table in (
-            ("table", TelemetryTable(columns, source="simulator")),
+            ("table", TelemetryTable(table_columns(record), source="simulator")),
             ("tlog", sources.read(out)),
         ):
             result = diagnose(table, params, profile)
@@ -147,7 +135,7 @@ def fault_row(turbulence: str, k: int, j: int, fault: str, params, profile, tmp:
         ]
         cells.append(f"{pair[0]:7.2f} / {pair[1]:7.2f}")
     false = [sum(r.false_events for r in rows[n]) for n in rows]
-    return f"{turbulence:10s} {fault:5s} {cells[0]:>17s} {cells[1]:>17s} {cells[2]:>17s} {false[0]:3d} / {false[1]}"
+    return f"{cases[0].turbulence:10s} {cases[0].fault:5s} {cells[0]:>17s} {cells[1]:>17s} {cells[2]:>17s} {false[0]:3d} / {false[1]}"
 
 
 if __name__ == "__main__":

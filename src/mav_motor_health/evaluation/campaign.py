@@ -16,11 +16,19 @@ from typing import Any
 import numpy as np
 
 from ..diagnosis.tuning import LabelledFlight
-from ..sim.engine import run_scenario
+from ..sim.engine import SimRecord, run_scenario
 from ..sim.scenario import Scenario, scenario_from_dict
 from ..telemetry.table import TelemetryTable
 
-__all__ = ["FAULTS", "TURBULENCE_LEVELS", "FlightCase", "run_flights", "scenario_for"]
+__all__ = [
+    "FAULTS",
+    "TURBULENCE_LEVELS",
+    "FlightCase",
+    "benchmark_fault_cases",
+    "run_flights",
+    "scenario_for",
+    "table_columns",
+]
 
 TURBULENCE_LEVELS = ("calm", "moderate", "gusty")
 FAULTS = ("F1.1", "F2.1", "F3.1", "F4.1", "F4.2")
@@ -79,12 +87,38 @@ def scenario_for(case: FlightCase) -> Scenario:
     return scenario_from_dict(data, path=f"<{case.name}>")
 
 
-def _run(case: FlightCase) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    scenario = scenario_for(case)
-    record = run_scenario(scenario)
+def table_columns(record: SimRecord) -> dict[str, np.ndarray]:
+    """A simulated flight's ESC reports as the telemetry columns the benchmarks and the tuning diagnose
+    (each sample with the command of its instant; no battery monitor)."""
     columns = record.esc_columns()
     columns.pop("rpm", None)
-    return columns, scenario.truth()
+    return columns
+
+
+def _run(case: FlightCase) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    scenario = scenario_for(case)
+    return table_columns(run_scenario(scenario)), scenario.truth()
+
+
+def benchmark_fault_cases() -> list[FlightCase]:
+    """The benchmark's fault flights (``benchmarks/bench_flight.py``, ``bench_telemetry_path.py``): per
+    turbulence level and fault two 50-s flights with the fault at 25 s, seeds from 2000 (the training
+    campaign's are from 1000), the motor rotating through the six."""
+    cases = []
+    for k, turbulence in enumerate(TURBULENCE_LEVELS):
+        for j, fault in enumerate(FAULTS):
+            for rep in range(2):
+                cases.append(
+                    FlightCase(
+                        turbulence,
+                        2000 + 100 * k + 10 * j + rep,
+                        50.0,
+                        fault=fault,
+                        motor=1 + (j + 2 * k + rep) % 6,
+                        onset_s=25.0,
+                    )
+                )
+    return cases
 
 
 def run_flights(cases: Sequence[FlightCase], jobs: int | None = None) -> list[LabelledFlight]:
