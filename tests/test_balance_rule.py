@@ -15,6 +15,8 @@ from mav_motor_health.diagnosis.tuning import _activity_band
 from mav_motor_health.evaluation.campaign import FlightCase, run_flights
 from mav_motor_health.model.balance import balance_deviations, censored_mean, input_activity
 from mav_motor_health.model.equations import steady_state
+from mav_motor_health.sim.faults import FaultEffects
+from mav_motor_health.sim.motor import MotorBank, MotorDynamics
 from mav_motor_health.telemetry.table import TelemetryTable
 
 
@@ -54,6 +56,37 @@ def test_speed_deviation_does_not_use_the_current(motor) -> None:
     b, _ = balance_deviations(motor, t, v, w, np.full(t.size, np.nan), 0.15, 0.5)
     np.testing.assert_allclose(a.delta_omega_rad_s, b.delta_omega_rad_s)
     assert np.all(np.isnan(b.delta_current_a)) and np.all(np.isfinite(a.delta_current_a))
+
+
+def test_esc_input_current_is_weighted_by_the_duty_not_divided_by_it(motor) -> None:
+    """A healthy motor whose command zigzags between 10-ms steps (as in gusty air), the ESC sensing its
+    input current d·i through a 20-ms filter as a shunt does. The motor current derived per sample
+    (reading / the sample's duty) is biased high: duty and current rise and fall together. Weighting the
+    electrical balance by the duty instead recovers what the true motor current gives."""
+    rng = np.random.default_rng(21)
+    dt, bus, n = 0.005, 11.1, 4000
+    phase = np.sign(np.sin(np.arange(n) * np.pi / 2 + 0.3))
+    duty = np.clip(0.55 + 0.08 * phase + rng.normal(0.0, 0.03, n), 0.2, 1.0)
+    w0 = float(steady_state(motor, 0.55 * bus).omega_rad_s)
+    bank = MotorBank(MotorDynamics(motor, inertia_kg_m2=motor.J_kg_m2), 1, rng, omega0_rad_s=w0)
+    w, i, sensed = np.zeros(n), np.zeros(n), np.zeros(n)
+    blend = 1.0 - np.exp(-dt / 0.02)
+    for k in range(n):
+        bank.step(np.array([duty[k] * bus]), dt, FaultEffects.healthy(1))
+        w[k], i[k] = bank.omega_rad_s[0], bank.current_a[0]
+        product = duty[k] * i[k]
+        sensed[k] = product if k == 0 else sensed[k - 1] + blend * (product - sensed[k - 1])
+    t, v = np.arange(n) * dt, duty * bus
+    settled = t > 5.0
+
+    def mean_delta_i(current, **esc) -> float:
+        res, _ = balance_deviations(motor, t, v, w, current, 0.3, 0.5, **esc)
+        return float(np.mean(res.delta_current_a[settled]))
+
+    truth = mean_delta_i(i)
+    assert abs(truth) < 0.05
+    assert mean_delta_i(sensed / duty) > truth + 0.5  # divided: biased
+    assert mean_delta_i(sensed / duty, input_current_a=sensed, duty=duty) == pytest.approx(truth, abs=0.05)
 
 
 def test_activity_sees_zigzags_not_steps_or_ramps() -> None:
@@ -123,6 +156,9 @@ def test_streaming_equals_batch_with_the_balance_rule(motor, flights) -> None:
     live = StreamingDiagnoser(motor, profile)
     for motor_number in (2, 5):
         part = table.for_motor(motor_number)
+        sel = batch["motor"] == motor_number
+        # the ESC currents' sum against the battery is checked across motors (the agent does it as it goes)
+        sum_flags = batch["sensor_flags"][sel] & SensorIssue.CURRENT_SUM
         rows = [
             live.update(
                 motor_number,
@@ -133,10 +169,10 @@ def test_streaming_equals_batch_with_the_balance_rule(motor, flights) -> None:
                 float(part["bus_voltage_v"][k]),
                 command=float(part["throttle"][k]),
                 sensor_current_a=float(part["esc_current_a"][k]),
+                extra_flags=int(sum_flags[k]),
             )
             for k in range(len(part))
         ]
-        sel = batch["motor"] == motor_number
         assert [r["state"] for r in rows] == batch["state"][sel].tolist()
         assert [r["announced"] for r in rows] == batch["announced"][sel].tolist()
 

@@ -7,6 +7,7 @@ import pytest
 
 from mav_motor_health.diagnosis import MotorState, StreamingDiagnoser, ThresholdProfile, classify, diagnose
 from mav_motor_health.diagnosis.plausibility import (
+    CurrentSumCheck,
     PlausibilityRule,
     SensorIssue,
     check_motor,
@@ -75,6 +76,31 @@ def test_sum_of_esc_currents_against_battery() -> None:
     assert not good[t > 10].any() and ratio[-1] == pytest.approx(0.97, abs=0.01)
     half, _, _ = sum_mismatch(RULE, t, battery * 0.5, battery)
     assert half[t > 10].all()
+
+
+def test_current_sum_check_adds_every_motors_latest_reading_in_any_chunking() -> None:
+    """Six ESCs reporting in turn at 50 Hz, the battery monitor reading half their sum from 30 s on; motor
+    4 to 6 report from 5 s on. Fed at once (replay) or row by row (the agent): the same flags; none before
+    every motor has reported (a sum of three is no sum: counting the silent ones as 0 A flagged the first
+    seconds); the misreading battery found after it begins."""
+    rng = np.random.default_rng(8)
+    n = 3000
+    motor = np.tile(np.arange(1, 7), n // 6)
+    t = np.repeat(np.arange(n // 6) * 0.02, 6) + (motor - 1) * 0.003
+    esc = rng.uniform(4.0, 6.0, n)
+    esc[(motor >= 4) & (t < 5.0)] = np.nan
+    esc[rng.random(n) < 0.05] = np.nan  # lost readings: the motor's last one stands
+    battery = np.full(n, 30.6)
+    battery[t >= 30.0] = 15.3
+    whole = CurrentSumCheck(RULE, motor).update(t, motor, esc, battery)
+    one_by_one = CurrentSumCheck(RULE, range(1, 7))
+    rows = [
+        one_by_one.update(t[k : k + 1], motor[k : k + 1], esc[k : k + 1], battery[k : k + 1])
+        for k in range(n)
+    ]
+    np.testing.assert_array_equal(np.concatenate(rows), whole)
+    assert not whole[t < 30.0].any()
+    assert whole[t > 35.0].all()
 
 
 def test_speed_only_tree(testbed_profile: ThresholdProfile, paper_motor) -> None:

@@ -2,7 +2,7 @@
 
 Six motors at 50 Hz follow the paper's steady-state model with seeded noise and input steps; faults
 come and go. The .tlog holds what ArduPilot streams (SERVO_OUTPUT_RAW, ESC_TELEMETRY_1_TO_4/5_TO_8,
-PARAM_VALUE) with MAVLink's integer quantisation; :func:`table_from_fields` turns the same integers into
+SYS_STATUS with the battery monitor's current, PARAM_VALUE) with MAVLink's integer quantisation; :func:`table_from_fields` turns the same integers into
 the telemetry table with the shared ``mavlink_esc`` functions, as a log reader does.
 """
 
@@ -55,6 +55,11 @@ class FlightFields:
     current_ca: np.ndarray
     temperature: np.ndarray
     count: np.ndarray
+    battery_ca: np.ndarray  # the battery monitor's current per tick [cA]
+
+
+#: from this time on the battery monitor reads 3 × the ESC currents' sum (a mis-scaled sensor)
+BATTERY_MISSCALED_FROM_S = 13.0
 
 
 def make_fields(
@@ -99,7 +104,9 @@ def make_fields(
         cv[:, col] = round(bus_v * 100) + rng.integers(-3, 4, ticks)
         ca[:, col] = np.maximum(np.round(i * thr_q * 100), 0)
         count[:, col] = np.arange(1, ticks + 1) % 65536
-    return FlightFields(stamp_us, pwm, rpm, cv, ca, temp, count)
+    battery_ca = ca.sum(axis=1) + 60  # the ESCs and 0.6 A of avionics
+    battery_ca = np.where(t >= BATTERY_MISSCALED_FROM_S, 3 * battery_ca, battery_ca)
+    return FlightFields(stamp_us, pwm, rpm, cv, ca, temp, count, battery_ca)
 
 
 def write_tlog(fields: FlightFields, path: Path) -> Path:
@@ -118,6 +125,7 @@ def write_tlog(fields: FlightFields, path: Path) -> Path:
     put(first + 21, mav.param_value_encode(b"MOT_PWM_MAX", 2000, 9, 10, 9))
     for k, stamp in enumerate(fields.stamp_us.tolist()):
         put(stamp, mav.servo_output_raw_encode(k & 0xFFFFFFFF, 0, *fields.pwm[k].tolist()))
+        put(stamp, mav.sys_status_encode(0, 0, 0, 0, 12000, int(fields.battery_ca[k]), -1, 0, 0, 0, 0, 0, 0))
         for group, encode in ((0, mav.esc_telemetry_1_to_4_encode), (4, mav.esc_telemetry_5_to_8_encode)):
             sl = slice(group, group + 4)
             put(
@@ -151,6 +159,7 @@ def table_from_fields(fields: FlightFields) -> TelemetryTable:
             "throttle",
             "esc_current_a",
             "esc_temp_c",
+            "battery_current_a",
         )
     }
     time_s = (
@@ -178,4 +187,5 @@ def table_from_fields(fields: FlightFields) -> TelemetryTable:
         cols["throttle"].append(throttle)
         cols["esc_current_a"].append(si["esc_current_a"])
         cols["esc_temp_c"].append(si["esc_temp_c"])
+        cols["battery_current_a"].append(fields.battery_ca / 100.0)
     return TelemetryTable({k: np.concatenate(v) for k, v in cols.items()}, source="synthetic flight")

@@ -7,10 +7,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from flightlog import make_fields, table_from_fields, write_tlog
+from flightlog import BATTERY_MISSCALED_FROM_S, make_fields, table_from_fields, write_tlog
 
 from mav_motor_health.agent import Agent, load_agent_config
 from mav_motor_health.diagnosis.pipeline import diagnose
+from mav_motor_health.diagnosis.plausibility import SensorIssue
 from mav_motor_health.diagnosis.states import MotorState
 
 
@@ -54,6 +55,9 @@ def test_streamed_log_announces_what_batch_diagnosis_announces(flight, paper_mot
             [r["announced"] for r in live], batch["announced"][sel], err_msg=f"motor {motor}"
         )
         np.testing.assert_array_equal([r["steady"] for r in live], batch["steady"][sel])
+        np.testing.assert_array_equal(
+            [r["sensor_flags"] for r in live], batch["sensor_flags"][sel], err_msg=f"motor {motor}"
+        )
         np.testing.assert_allclose(
             [r["omega_model_rad_s"] for r in live], batch["omega_model_rad_s"][sel], rtol=1e-12
         )
@@ -72,6 +76,10 @@ def test_streamed_log_announces_what_batch_diagnosis_announces(flight, paper_mot
     # the flight holds faults the agent must have announced: the test is not vacuous
     states = {s for _, _, s in published}
     assert {MotorState.F3_1, MotorState.F2_1, MotorState.F1_1} <= states
+    # and a battery monitor that disagrees with the ESC currents' sum (from BATTERY_MISSCALED_FROM_S),
+    # which both find only after it (the sums agree before)
+    summed = (batch["sensor_flags"] & SensorIssue.CURRENT_SUM) != 0
+    assert summed.any() and batch["time_s"][summed].min() > BATTERY_MISSCALED_FROM_S
 
 
 def test_the_replay_reader_and_the_agent_see_the_same_samples(flight):

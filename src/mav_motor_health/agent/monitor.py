@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..diagnosis.pipeline import StreamingDiagnoser
+from ..diagnosis.plausibility import CurrentSumCheck, SensorIssue
 from ..diagnosis.profile import ThresholdProfile
 from ..diagnosis.states import MotorState
 from ..model.params import MotorParams
@@ -62,6 +63,8 @@ class HealthMonitor:
         stale_s: float = 1.0,
     ) -> None:
         self.diagnoser = StreamingDiagnoser(params, profile)
+        # the ESC currents' sum against the battery monitor, across motors, as replay checks it
+        self.current_sum = CurrentSumCheck(profile.plausibility, range(1, motors + 1))
         self.stale_s = stale_s
         self.status = {n: MotorStatus(n) for n in range(1, motors + 1)}
         self.samples = 0
@@ -75,10 +78,19 @@ class HealthMonitor:
         """Diagnose samples (each motor's in time order) in one core call per motor: same results as one
         by one (the core carries its state), a fraction of the overhead. Returns rows and changes."""
         by_motor: dict[int, list[MotorSample]] = {}
+        sum_flags: dict[int, list[int]] = {}
         for sample in samples:
             if sample.motor not in self.status:
                 raise KeyError(f"motor {sample.motor} is not one of 1..{len(self.status)}")
+        mismatch = self.current_sum.update(
+            [s.time_s for s in samples],
+            [s.motor for s in samples],
+            [s.esc_current_a for s in samples],
+            [s.battery_current_a for s in samples],
+        )
+        for sample, bad in zip(samples, mismatch.tolist()):
             by_motor.setdefault(sample.motor, []).append(sample)
+            sum_flags.setdefault(sample.motor, []).append(int(SensorIssue.CURRENT_SUM) if bad else 0)
         rows: list[dict[str, Any]] = []
         changes: list[StateChange] = []
         for motor, group in by_motor.items():
@@ -105,6 +117,7 @@ class HealthMonitor:
                 arrays["bus_voltage_v"],
                 command=arrays["throttle"],
                 sensor_current_a=arrays["esc_current_a"],
+                extra_flags=np.array(sum_flags[motor], dtype=np.int16),
                 context=arrays,  # what a model with fitted effects may read (temperatures, throttle...)
             )
             for k, sample in enumerate(group):

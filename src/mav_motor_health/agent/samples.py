@@ -1,7 +1,7 @@
 """MAVLink messages to motor samples: the live side of the telemetry table, one row at a time.
 
 :class:`SampleAssembler` remembers what the messages before said (the last motor commands, the
-battery voltage, the autopilot's parameters) and turns each ESC telemetry message into one
+battery voltage and current, the autopilot's parameters) and turns each ESC telemetry message into one
 :class:`MotorSample` per motor it carries, in the table's columns and units. All scaling, the ESC→motor
 mapping, the PWM range and what the motor sees are :mod:`mav_motor_health.telemetry.mavlink_esc`'s.
 ArduPilot keeps repeating an ESC's last values when its telemetry stops; once an ESC's packet ``count``
@@ -40,6 +40,8 @@ class MotorSample:
     throttle: float
     esc_current_a: float
     esc_temp_c: float
+    #: the battery monitor's latest current [A] (NaN: none reported)
+    battery_current_a: float = math.nan
 
     def row(self) -> dict[str, float]:
         """The sample as a table row (column name → value)."""
@@ -53,6 +55,7 @@ class MotorSample:
             "throttle": self.throttle,
             "esc_current_a": self.esc_current_a,
             "esc_temp_c": self.esc_temp_c,
+            "battery_current_a": self.battery_current_a,
         }
 
 
@@ -64,6 +67,7 @@ class SampleAssembler:
         self.params: dict[str, float] = dict(params or {})
         self.pwm_us: dict[int, float] = {}  # servo output (1-based) → last pulse width
         self.battery_v = math.nan
+        self.battery_a = math.nan
         self._count: dict[int, int] = {}  # motor → last ESC packet count
         self._count_moves: set[int] = set()  # motors whose ESC count has been seen to advance
         self.repeats = 0  # ESC slots skipped because their packet count did not advance
@@ -127,11 +131,15 @@ class SampleAssembler:
         elif kind == "SYS_STATUS":
             if msg.voltage_battery not in (0, 0xFFFF):
                 self.battery_v = msg.voltage_battery / 1000.0
+            if msg.current_battery != -1:  # cA; −1: not measured
+                self.battery_a = msg.current_battery / 100.0
         elif kind == "BATTERY_STATUS":
             if int(msg.id) == 0:
                 cells = [v for v in msg.voltages if v not in (0xFFFF,)]
                 if cells:
                     self.battery_v = sum(cells) / 1000.0
+                if msg.current_battery != -1:
+                    self.battery_a = msg.current_battery / 100.0
         elif kind == "PARAM_VALUE":
             name = msg.param_id.rstrip("\x00") if isinstance(msg.param_id, str) else msg.param_id
             self.set_param(str(name), float(msg.param_value))
@@ -200,6 +208,7 @@ class SampleAssembler:
                 throttle=float(throttle[k]),
                 esc_current_a=float(si["esc_current_a"][k]),
                 esc_temp_c=float(si["esc_temp_c"][k]),
+                battery_current_a=self.battery_a,
             )
             for k, j in enumerate(slots)
         ]

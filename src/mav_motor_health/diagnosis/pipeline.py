@@ -22,10 +22,10 @@ from ..telemetry.table import TelemetryTable
 from .persistence import PersistenceCarry, announce
 from .plausibility import (
     CURRENT_UNTRUSTED,
+    CurrentSumCheck,
     PlausibilityCarry,
     SensorIssue,
     check_motor,
-    sum_mismatch,
 )
 from .profile import ThresholdProfile
 from .stall import StallCarry, stall_mean
@@ -118,6 +118,8 @@ def diagnose_motor(
             carry.balance,
             activity_ref_v=rule.activity_ref_v,
             tau_max_s=rule.residual_tau_max_s,
+            input_current_a=sensor_current_a if command is not None else None,
+            duty=command if sensor_current_a is not None else None,
         )
         activity, judged_v = bal.activity_v, bal.voltage_v
         omega_pred, current_pred = bal.omega_model_rad_s, bal.current_model_a
@@ -336,15 +338,9 @@ def _current_sum_flags(table: TelemetryTable, profile: ThresholdProfile) -> NDAr
     battery = table.get("battery_current_a")
     if esc is None or battery is None or not np.isfinite(battery).any():
         return None
-    t, motors = table["time_s"], table["motor"]
-    order = np.argsort(t, kind="stable")
-    total = np.zeros(len(table))
-    for motor in table.motors():
-        sel = np.flatnonzero((motors == motor) & np.isfinite(esc))  # its readings, not the rows without one
-        j = np.searchsorted(t[sel], t[order], side="right") - 1  # latest sample of this motor at each time
-        held = np.where(j >= 0, esc[sel][np.maximum(j, 0)], np.nan)
-        total += np.nan_to_num(held)
-    mismatch, _, _ = sum_mismatch(profile.plausibility, t[order], total, battery[order])
+    order = np.argsort(table["time_s"], kind="stable")
+    check = CurrentSumCheck(profile.plausibility, table.motors())
+    mismatch = check.update(table["time_s"][order], table["motor"][order], esc[order], battery[order])
     flags = np.zeros(len(table), dtype=np.int16)
     flags[order[mismatch]] = SensorIssue.CURRENT_SUM
     return flags

@@ -11,10 +11,11 @@ Per motor, causal, carried between calls (live and replay run the same code):
   ``min_command_change`` (a real sensor's last digit moves when the load does);
 * **out of range**: ESC current outside ``current_min_a``..``current_max_a``, speed outside
   0..``speed_max_rad_s``;
-* **sum** (across motors, :func:`sum_mismatch`): the ESC input currents' sum against the battery monitor's
-  current, both smoothed over ``sum_tau_s``: a ratio outside 1 ± ``sum_tolerance`` while the battery draws
-  more than ``sum_min_battery_a`` marks every ESC current as mis-scaled (or the battery monitor: we cannot
-  tell which, so the ESC currents are not used).
+* **sum** (across motors, :class:`CurrentSumCheck`, :func:`sum_mismatch`): the ESC input currents' sum
+  against the battery monitor's current, both smoothed over ``sum_tau_s``: a ratio outside
+  1 ± ``sum_tolerance`` while the battery draws more than ``sum_min_battery_a`` marks every ESC current as
+  mis-scaled (or the battery monitor: we cannot tell which, so the ESC currents are not used). The sum is
+  each motor's latest reading, formed once every motor has reported (a partial sum is no sum).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from ..errors import ConfigError
 from ..model.dynamics import ResponseCarry, first_order_response
 
 __all__ = [
+    "CurrentSumCheck",
     "PlausibilityCarry",
     "PlausibilityRule",
     "SensorIssue",
@@ -178,6 +180,11 @@ def check_motor(
 class SumCarry:
     esc: ResponseCarry = field(default_factory=ResponseCarry)
     battery: ResponseCarry = field(default_factory=ResponseCarry)
+    start_s: float = float("nan")
+
+
+#: the sum is judged once its averages hold this share of ``sum_tau_s``
+SUM_MIN_SHARE = 0.2
 
 
 def sum_mismatch(
@@ -187,11 +194,71 @@ def sum_mismatch(
     battery_current_a: ArrayLike,
     carry: SumCarry = SumCarry(),
 ) -> tuple[NDArray[np.bool_], NDArray[np.float64], SumCarry]:
-    """Where the ESC currents' sum disagrees with the battery monitor; also returns the smoothed ratio."""
+    """Where the ESC currents' sum disagrees with the battery monitor; also returns the smoothed ratio.
+
+    Both are averaged over ``sum_tau_s``; until that long has passed since the first sample with both,
+    over all samples so far (a first reading taken in a transient would otherwise weigh for many
+    seconds), and judged from :data:`SUM_MIN_SHARE` of it on.
+    """
     t = np.asarray(time_s, dtype=float)
-    esc, esc_carry = first_order_response(t, esc_current_sum_a, rule.sum_tau_s, carry.esc)
-    bat, bat_carry = first_order_response(t, battery_current_a, rule.sum_tau_s, carry.battery)
+    esc_in = np.asarray(esc_current_sum_a, dtype=float)
+    bat_in = np.asarray(battery_current_a, dtype=float)
+    start = carry.start_s
+    if not np.isfinite(start):
+        both = np.flatnonzero(np.isfinite(esc_in) & np.isfinite(bat_in))
+        start = float(t[both[0]]) if both.size else float("nan")
+    elapsed = t - start  # NaN before a start: the low-passes then hold (NaN inputs)
+    tau = np.clip(np.where(np.isfinite(elapsed), elapsed, rule.sum_tau_s), 1e-3, rule.sum_tau_s)
+    esc, esc_carry = first_order_response(t, esc_in, tau, carry.esc)
+    bat, bat_carry = first_order_response(t, bat_in, tau, carry.battery)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = esc / bat
-    mismatch = (bat > rule.sum_min_battery_a) & (np.abs(ratio - 1.0) > rule.sum_tolerance)
-    return mismatch, ratio, SumCarry(esc=esc_carry, battery=bat_carry)
+    mismatch = (
+        (bat > rule.sum_min_battery_a)
+        & (np.abs(ratio - 1.0) > rule.sum_tolerance)
+        & (elapsed >= SUM_MIN_SHARE * rule.sum_tau_s)
+    )
+    return mismatch, ratio, SumCarry(esc=esc_carry, battery=bat_carry, start_s=start)
+
+class CurrentSumCheck:
+    """The ESC currents' sum against the battery monitor, fed samples of any motors in arrival order.
+
+    Replay feeds a whole log's rows (in time order) in one call, the live agent each message's samples as
+    they come: the same rows give the same flags. Each row adds its motor's reading (NaN: none, the
+    motor's last one stays) and is judged with the sum of every motor's latest reading and the row's
+    battery current.
+    """
+
+    def __init__(self, rule: PlausibilityRule, motors: ArrayLike) -> None:
+        self.rule = rule
+        self.motors = [int(m) for m in np.unique(np.asarray(motors, dtype=np.int64))]
+        self.latest = np.full(len(self.motors), np.nan)  # each motor's latest reading [A]
+        self.carry = SumCarry()
+
+    def update(
+        self,
+        time_s: ArrayLike,
+        motor: ArrayLike,
+        esc_current_a: ArrayLike,
+        battery_current_a: ArrayLike,
+    ) -> NDArray[np.bool_]:
+        """Whether the sum disagrees with the battery at each row (rows in time order)."""
+        t = np.asarray(time_s, dtype=float)
+        m = np.asarray(motor, dtype=np.int64)
+        i = np.asarray(esc_current_a, dtype=float)
+        total = np.zeros(t.shape)
+        positions = np.arange(t.size)
+        for k, number in enumerate(self.motors):
+            own = (m == number) & np.isfinite(i)
+            # the position of the motor's latest reading at or before each row (−1: none in this call)
+            last = np.maximum.accumulate(np.where(own, positions, -1)) if t.size else positions
+            held = np.where(last >= 0, i[np.maximum(last, 0)], self.latest[k])
+            total += held  # NaN until this motor has reported: no sum yet
+            if t.size and last[-1] >= 0:
+                self.latest[k] = i[last[-1]]
+        # the two averages start together: each only where both are known
+        battery = np.asarray(battery_current_a, dtype=float)
+        known = np.isfinite(total) & np.isfinite(battery)
+        total, battery = np.where(known, total, np.nan), np.where(known, battery, np.nan)
+        mismatch, _, self.carry = sum_mismatch(self.rule, t, total, battery, self.carry)
+        return mismatch

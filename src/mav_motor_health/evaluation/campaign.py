@@ -88,10 +88,16 @@ def scenario_for(case: FlightCase) -> Scenario:
 
 
 def table_columns(record: SimRecord) -> dict[str, np.ndarray]:
-    """A simulated flight's ESC reports as the telemetry columns the benchmarks and the tuning diagnose
-    (each sample with the command of its instant; no battery monitor)."""
+    """A simulated flight's ESC reports as the telemetry columns the benchmarks and the tuning diagnose:
+    each sample with the command of its instant and the battery monitor's latest reading (the vehicle's
+    records, ``log_hz``), so that the ESC currents' sum is checked against it as in a log or live."""
     columns = record.esc_columns()
     columns.pop("rpm", None)
+    if record.vehicle:
+        t = np.array([v.time_s for v in record.vehicle])
+        amps = np.array([v.battery_current_a for v in record.vehicle])
+        j = np.searchsorted(t, columns["time_s"], side="right") - 1
+        columns["battery_current_a"] = np.where(j >= 0, amps[np.maximum(j, 0)], np.nan)
     return columns
 
 

@@ -94,6 +94,8 @@ class BalanceCarry:
     electrical: ResponseCarry = field(default_factory=ResponseCarry)
     mechanical: ResponseCarry = field(default_factory=ResponseCarry)
     zero_current: ResponseCarry = field(default_factory=ResponseCarry)
+    sensed: ResponseCarry = field(default_factory=ResponseCarry)
+    weight: ResponseCarry = field(default_factory=ResponseCarry)
     interval: ResponseCarry = field(default_factory=ResponseCarry)
     activity: ActivityCarry = field(default_factory=ActivityCarry)
 
@@ -142,6 +144,9 @@ def input_activity(
     return activity, ActivityCarry(response=response, slow=slow_response, last_v=last_v, last_dv=last_dv)
 
 
+#: below this mean duty the ESC's input current says too little about the motor's (see model/esc.py)
+MIN_MEAN_DUTY = 0.05
+
 #: above this share of zero readings the censored mean is not trusted further (most readings say nothing)
 MAX_ZERO_SHARE = 0.9
 
@@ -175,6 +180,8 @@ def balance_deviations(
     *,
     activity_ref_v: float = 0.0,
     tau_max_s: float = 2.0,
+    input_current_a: ArrayLike | None = None,
+    duty: ArrayLike | None = None,
 ) -> tuple[BalanceResult, BalanceCarry]:
     """Low-passed balances and the steady-state deviations they imply (see the module doc).
 
@@ -210,25 +217,38 @@ def balance_deviations(
     v_mean, c_v = first_order_response(t, v, tau, carry.voltage)
     w_mean, c_w = first_order_response(t, w, tau, carry.omega)
     i_mean, c_i = first_order_response(t, i, tau, carry.current)  # the stall current: every reading
-    zero = np.where(np.isfinite(i), (i == 0.0).astype(float), np.nan)
+    # The current enters through the electrical balance, weighted as the sensor weights it: an ESC reports
+    # its input current s = d·i (sensed and averaged as a shunt does) and d·(V − k_e·ω − R·i) = d·r_V, so
+    # mean(d·(V − k_e·ω) − R·s) = mean(d)·r_V for a lasting r_V, however d and i zigzag together (see the
+    # module doc); a motor current is the case d = 1.
+    if input_current_a is not None and duty is not None:
+        sensed = np.asarray(input_current_a, dtype=float)
+        weight = np.clip(np.asarray(duty, dtype=float), 0.0, 1.0)
+    else:
+        sensed, weight = i, np.ones_like(t)
+    weight = np.where(np.isfinite(sensed), weight, np.nan)
+    s_mean, c_s = first_order_response(t, sensed, tau, carry.sensed)
+    d_mean, c_d = first_order_response(t, weight, tau, carry.weight)
+    zero = np.where(np.isfinite(sensed), (sensed == 0.0).astype(float), np.nan)
     zero_share, c_z = first_order_response(t, zero, tau, carry.zero_current)
     sb_mean, c_e = first_order_response(t, speed_balance, tau, carry.electrical)
-    torque = p.k_t * (i - load_a)
-    rt_mean, c_m = first_order_response(t, torque, tau, carry.mechanical)
+    electrical = weight * (v - p.k_e * w) - p.R_ohm * sensed
+    e_mean, c_m = first_order_response(t, electrical, tau, carry.mechanical)
     inertia = p.J_kg_m2 or 0.0
     accel_torque = inertia * (w - w_mean) / tau
     accel_torque = np.where(np.isfinite(accel_torque), accel_torque, 0.0)
     sb_mean = sb_mean - p.R_ohm * accel_torque
     # unsigned readings: the zeros were currents at or below zero (see the module doc)
-    rt_mean = rt_mean - accel_torque + p.k_t * (censored_mean(i_mean, zero_share) - i_mean)
+    e_mean = e_mean - p.R_ohm * (censored_mean(s_mean, zero_share) - s_mean)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rv_mean = e_mean / np.where(d_mean >= MIN_MEAN_DUTY, d_mean, np.nan)
     model = steady_state(p, v_mean)
     w_m = np.maximum(model.omega_rad_s, 0.0)
     g = p.k * p.C_p * w_m ** (p.k - 1.0) + p.B
     d = p.k_t * p.k_e + p.R_ohm * g
     delta_w = -sb_mean / d
-    # r_V = (speed_balance − R·r_T)/k_t; Δi = (k_e·r_T − G·r_V)/D
-    rv_mean = (sb_mean - p.R_ohm * rt_mean) / p.k_t
-    delta_i = (p.k_e * rt_mean - g * rv_mean) / d
+    # the current at the deviated speed, from eq. 1: Δi = −(k_e·Δω + r_V)/R (= (k_e·r_T − G·r_V)/D)
+    delta_i = -(p.k_e * delta_w + rv_mean) / p.R_ohm
     delta_i = np.where(np.isfinite(i), delta_i, np.nan)
     result = BalanceResult(
         voltage_v=v_mean,
@@ -249,6 +269,8 @@ def balance_deviations(
         electrical=c_e,
         mechanical=c_m,
         zero_current=c_z,
+        sensed=c_s,
+        weight=c_d,
         interval=c_dt,
         activity=c_a,
     )

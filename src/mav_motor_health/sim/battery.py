@@ -1,10 +1,16 @@
-"""A LiPo battery: open-circuit voltage by state of charge, internal resistance, coulomb counting."""
+"""A LiPo battery: open-circuit voltage by state of charge, internal resistance, coulomb counting; and its
+current monitor, which averages (ArduPilot's analog monitor reads the ADC's mean since its last read, at
+10 Hz: :data:`MONITOR_TAU_S`)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
-__all__ = ["Battery", "BatterySpec"]
+__all__ = ["MONITOR_TAU_S", "Battery", "BatterySpec"]
+
+#: time constant of the battery monitor's current average [s]
+MONITOR_TAU_S = 0.1
 
 #: open-circuit voltage of one LiPo cell [V] at state of charge 0, 0.1, ..., 1.0
 _CELL_OCV_V = (3.27, 3.61, 3.69, 3.71, 3.73, 3.77, 3.79, 3.82, 3.87, 3.95, 4.20)
@@ -28,6 +34,8 @@ class Battery:
         self.consumed_mah = 0.0
         self.energy_wh = 0.0
         self.current_a = 0.0
+        #: the current as the battery monitor reports it (averaged over MONITOR_TAU_S)
+        self.monitor_current_a = math.nan
         self.voltage_v = self.open_circuit_v()
 
     def open_circuit_v(self) -> float:
@@ -41,6 +49,12 @@ class Battery:
     def step(self, current_a: float, dt: float) -> float:
         """Draw ``current_a`` for ``dt`` seconds; returns the terminal voltage."""
         self.current_a = current_a
+        if math.isnan(self.monitor_current_a):
+            self.monitor_current_a = current_a
+        else:
+            self.monitor_current_a += (current_a - self.monitor_current_a) * (
+                1.0 - math.exp(-dt / MONITOR_TAU_S)
+            )
         if self.spec.supply_v is not None:
             self.voltage_v = self.spec.supply_v
         else:

@@ -235,7 +235,7 @@ class Simulation:
             pwm_us=pwm,
             duty=tuple(float(d) for d in self.duty),
             bus_voltage_v=self.battery.voltage_v,
-            battery_current_a=self.battery.current_a,
+            battery_current_a=self.battery.monitor_current_a,
             consumed_mah=self.battery.consumed_mah,
             remaining_pct=self.battery.remaining_pct,
             roll_rad=att[0],

@@ -3,7 +3,7 @@
 ArduPilot sends each ESC a pulse width between ``MOT_PWM_MIN`` and ``MOT_PWM_MAX``; the ESC maps it
 linearly to a duty cycle. Averaged over a PWM period the motor sees ``duty·V_bus`` and, by power balance
 of an ideal switch, the ESC's input current is ``duty·i_motor`` (plus a small quiescent current). This is
-what a real ESC's telemetry reports as its current.
+what a real ESC's telemetry reports as its current (sim/sensors.py: filtered, unsigned).
 """
 
 from __future__ import annotations
@@ -32,8 +32,7 @@ def pwm_from_duty(
 
 
 def esc_input_current_a(duty: ArrayLike, motor_current_a: ArrayLike) -> NDArray[np.float64]:
-    """Battery-side current of one ESC: ``duty × motor current`` (never negative: no regeneration)."""
-    return (
-        np.maximum(np.asarray(duty, dtype=float) * np.asarray(motor_current_a, dtype=float), 0.0)
-        + QUIESCENT_A
-    )
+    """Battery-side current of one ESC: ``duty × motor current`` plus its own consumption; negative while
+    the motor brakes (the simulated motor's current turns negative when its back-EMF exceeds its input,
+    as with the complementary PWM of BLHeli/AM32 ESCs, and flows back to the bus)."""
+    return np.asarray(duty, dtype=float) * np.asarray(motor_current_a, dtype=float) + QUIESCENT_A

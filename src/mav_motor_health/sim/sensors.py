@@ -7,11 +7,15 @@
   :class:`~mav_motor_health.sim.steady.SensorNoise` the steady-state tools use);
 * quantisation as MAVLink carries it: integer rpm, current in cA, voltage in cV, integer °C;
 * dropouts: single lost samples with probability ``dropout``, and rare bursts of ``burst_s`` seconds;
-* the current is sensed through a first-order filter (``current_filter_s``, 20 ms by default): in
-  steady state it changes nothing, in fast transients the current lags the speed.
+* the current is the ESC's *input* current, sensed as a shunt on its DC side senses it: the instantaneous
+  ``duty × motor current`` (negative while the motor brakes), through a first-order filter
+  (``current_filter_s``, 20 ms by default), reported unsigned. In steady state the filter changes
+  nothing; where the command zigzags, the reading is the mean of the product, which is what the battery
+  sees too (the ESC currents add up to the battery current), not the sample's duty times the mean motor
+  current.
 
-The ESC reports its *input* current (``duty × motor current``); the motor current in the CSV is that
-divided by the duty, i.e. the same quantised reading.
+The motor current in the CSV is the reading divided by the sample's duty, as the telemetry sources derive
+it (:func:`mav_motor_health.model.esc.motor_current_a`).
 """
 
 from __future__ import annotations
@@ -93,13 +97,14 @@ class EscSensors:
         motor_temp_c: NDArray[np.float64],
     ) -> list[EscSample]:
         """Reports of every ESC whose clock ticked by ``time_s`` (call once per simulation step)."""
-        # The ESC's current sense is filtered (first order): in fast transients it lags the speed.
+        # The ESC senses its input current (duty × motor current, signed) through a first-order filter.
+        input_a = duty * motor_current_a
         tau = self.spec.current_filter_s
         if tau > 0 and self._filtered_a is not None:
-            self._filtered_a += (motor_current_a - self._filtered_a) * (1.0 - math.exp(-dt / tau))
-            motor_current_a = self._filtered_a
+            self._filtered_a += (input_a - self._filtered_a) * (1.0 - math.exp(-dt / tau))
         else:
-            self._filtered_a = np.array(motor_current_a, dtype=float)
+            self._filtered_a = np.array(input_a, dtype=float)
+        sensed_a = self._filtered_a
         if time_s < self._next_min_s:
             return []
         due = np.flatnonzero(self.next_s <= time_s)
@@ -115,10 +120,15 @@ class EscSensors:
         d = duty[due]
         noise = rng.uniform(-1.0, 1.0, (2, due.size))
         w = omega_rad_s[due] + noise[0] * spec.speed_noise_rad_s
+        # the noise as the paper measured it on the motor current, seen through the duty
         i_half = self.noise.current_halfwidth_a(d * bus_voltage_v)
-        i_motor = motor_current_a[due] + noise[1] * i_half
-        esc_ca = np.rint(np.maximum(d * i_motor, 0.0) * 100.0)
-        motor_ca = np.where(d > 0.02, np.rint(esc_ca / np.maximum(d, 0.02)), np.rint(i_motor * 100.0))
+        esc_a = sensed_a[due] + d * noise[1] * i_half
+        esc_ca = np.rint(np.maximum(esc_a, 0.0) * 100.0)
+        motor_ca = np.where(
+            d > 0.02,
+            np.rint(esc_ca / np.maximum(d, 0.02)),
+            np.rint((motor_current_a[due] + noise[1] * i_half) * 100.0),
+        )
         rpm = np.maximum(np.rint(w * RAD_S_TO_RPM), 0.0)
         volt_cv = round(bus_voltage_v * 100.0)
         self._next_min_s = float(self.next_s.min())
