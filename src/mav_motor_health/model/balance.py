@@ -19,19 +19,30 @@ To keep the paper's tree and its bands, the two offsets are turned into the devi
 current they would cause in steady state at the (low-passed) input ``V̄``. Linearising the model there,
 with ``G = k·C_p·ω^(k−1) + B`` and ``D = k_t·k_e + R·G``:
 
-    Δω = −(k_t·r_V + R·r_T) / D          Δi = (k_e·r_T − G·r_V) / D
+    Δω = −(k_t·r_V + R·r_T) / D          Δi = −(k_e·Δω + r_V) / R   (= (k_e·r_T − G·r_V) / D)
 
-(Δω does not depend on the measured current at all: a current sensor that is noisy or mis-scaled does
-not move the speed residual.) The tree then judges ``ω_model(V̄) + Δω`` and ``i_model(V̄) + Δi`` against
-``ω_model(V̄)`` and ``i_model(V̄)``: on a testbed at constant input this is the paper's comparison; in
-flight it is the same comparison without needing the input to stand still.
+(Δω comes from ``k_t·r_V + R·r_T``, which has no current in it: a current sensor that is noisy or
+mis-scaled does not move the speed residual.) The tree then judges ``ω_model(V̄) + Δω`` and
+``i_model(V̄) + Δi`` against ``ω_model(V̄)`` and ``i_model(V̄)``: on a testbed at constant input this is
+the paper's comparison; in flight it is the same comparison without needing the input to stand still.
+
+The current enters through ``r_V`` only, weighted as the sensor weights it. An ESC reports its *input*
+current ``s``, the average of ``d·i`` (duty times motor current) as a shunt on its DC side sees it; where
+the command zigzags between control steps, duty and current rise and fall together, and ``s/d`` of a
+single sample is not the motor current (it reads high). But ``d·(V − k_e·ω) − R·s`` averages to
+``mean(d)·r_V`` for a lasting ``r_V`` whatever ``d`` and ``i`` do, so with ``input_current_a`` and
+``duty``:
+
+    r_V = mean(d·(V − k_e·ω) − R·s) / mean(d)
+
+and without them (a motor current, a testbed) ``d = 1`` and ``s = i``, the balance above.
 
 Most ESCs report their current unsigned: a motor that brakes (its back-EMF above the input, the current
-flowing back) reads 0, not its negative current. Where the input zigzags hard, a fair share of readings
-are such zeros and the mean of the readings sits above the mean current (by about half an ampere on
-the simulated hexacopter in gusty air, enough to hide an open transistor's current loss). The mechanical balance
-therefore uses the mean the readings imply when the zeros are taken for what they are, readings at or
-below zero (:func:`censored_mean`).
+flowing back) reads 0, not its negative current, and the mean of the readings sits above the mean
+current. The balance therefore uses the mean the readings imply when the zeros are taken for what they
+are, readings at or below zero (:func:`censored_mean`). (With the ESC averaging its input current before
+it reports, such zeros are rare, about 3 % of the readings in the simulator's gusty air; an ESC that
+reports single unaveraged samples reads many more.)
 
 The *input activity* (:func:`input_activity`) measures how much the input zigzags between samples: the
 balances' noise grows with it (a command that moves between samples leaves the sensed current behind),

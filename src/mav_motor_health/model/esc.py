@@ -10,7 +10,11 @@ Assumptions and limits, which docs/flight.md discusses: the command maps linearl
 BLHeli/AM32 with calibrated endpoints and of DShot; not of ESCs with a throttle curve or active braking
 set up differently); switching and conduction losses are neglected (a few per cent, absorbed by the fitted
 R); below ``min_duty`` the division amplifies the current sensor's offset and noise without bound, so
-the motor current is left undefined (NaN) there.
+the motor current is left undefined (NaN) there; and an ESC reports its input current *averaged*, the
+mean of duty × current, so where the command zigzags between control steps the quotient with the
+sample's duty reads high (duty and current rise together). The flight rule therefore never divides: it
+weights the model by the duty (:mod:`.balance`); the quotient serves display, the stall current and the
+testbed rules.
 """
 
 from __future__ import annotations
