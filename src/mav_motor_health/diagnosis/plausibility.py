@@ -220,6 +220,7 @@ def sum_mismatch(
     )
     return mismatch, ratio, SumCarry(esc=esc_carry, battery=bat_carry, start_s=start)
 
+
 class CurrentSumCheck:
     """The ESC currents' sum against the battery monitor, fed samples of any motors in arrival order.
 
