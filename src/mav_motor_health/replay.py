@@ -21,7 +21,7 @@ import os
 import sys
 import time
 import warnings
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -289,6 +289,25 @@ def write_diagnosis_csv(result: TelemetryTable, path: Path) -> None:
     write_csv_columns(path, columns)
 
 
+#: the flight profile's benchmark figures hold for samples paired with a command within this (the agent's
+#: 200 Hz streams; docs/flight.md, section 6, "Through the logs")
+PAIRING_OK_S = 0.0075
+
+
+def pairing_note(meta: Mapping[str, Any], profile: ThresholdProfile) -> str | None:
+    """A warning when the log pairs ESC samples with motor commands too loosely for the balance rule."""
+    pairing = meta.get("pairing_s")
+    if profile.steady.kind != "balance" or pairing is None or not pairing > PAIRING_OK_S:
+        return None
+    return (
+        f"ESC samples are paired with motor commands only to within about {1000 * pairing:.0f} ms in this "
+        f"log; the {profile.name!r} profile holds its benchmark figures with commands within about 5 ms. "
+        "Expect false fault events in gusty or aggressive flight and less sensitivity to small faults "
+        "(docs/flight.md, section 6, \"Through the logs\"). Log or stream the ESC telemetry and the motor "
+        "outputs at 200 Hz to avoid this."
+    )
+
+
 def replay_log(
     log: str | Path,
     out_dir: str | Path,
@@ -336,6 +355,12 @@ def replay_log(
             f"{calibration.samples} samples, {100 * calibration.current_trusted_share:.0f} % with a "
             "trusted current).",
         )
+    pairing = pairing_note(table.meta, profile)
+    if pairing is not None:
+        warned += (pairing,)
+        notes += (pairing,)
+        if reissue_warnings:
+            warnings.warn(f"{log}: {pairing}", UserWarning, stacklevel=2)
     bar.update(1, 4, f"diagnosing {len(table.motors())} motors")
     result = diagnose(table, params, profile)  # the same core the live agent runs
     expected = [int(m) for m in table.meta.get("motors", [])]

@@ -3,8 +3,10 @@ the replay readers, and replayed end to end: the same ESC samples from all three
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -94,3 +96,29 @@ def test_simulated_flight_replays_end_to_end(written: dict[str, Path], tmp_path:
     ]
     truth = json.loads(Path(str(written[".bin"]) + ".truth.json").read_text())
     assert truth["faults"][0]["motor"] == 5
+
+
+def test_replay_warns_when_the_log_pairs_samples_and_commands_loosely(record: Any, tmp_path: Path) -> None:
+    """The same flight as a .tlog streamed at 10 Hz (each ESC packet up to 100 ms older than its message)
+    and at 200 Hz: only the first gets the warning, in the result and in the report; a profile without
+    the balance rule (the testbed's) is not warned."""
+    motor, flight = load_motor_params(), load_profile("flight")
+    outputs = {}
+    for rate_hz in (10.0, 200.0):
+        scenario = dataclasses.replace(record.scenario, esc_stream_hz=rate_hz, log_hz=rate_hz)
+        log, _ = write_record(run_scenario(scenario), tmp_path / f"flight_{rate_hz:g}hz.tlog")
+        assert sources.read(log).meta["pairing_s"] == pytest.approx(1.0 / rate_hz, rel=0.05)
+        out = tmp_path / f"out{rate_hz:g}"
+        if rate_hz < 200:
+            with pytest.warns(UserWarning, match="paired with motor commands"):
+                outputs[rate_hz] = replay_log(log, out, motor, flight)
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # no warning at all
+                outputs[rate_hz] = replay_log(log, out, motor, flight)
+    loose = [w for w in outputs[10.0].warnings if "paired with motor commands" in w]
+    assert len(loose) == 1 and "about 100 ms" in loose[0]
+    assert "paired with motor commands" in (tmp_path / "out10" / "report.html").read_text()
+    assert not any("paired with motor commands" in w for w in outputs[200.0].warnings)
+    testbed = replay_log(tmp_path / "flight_10hz.tlog", tmp_path / "testbed", motor, load_profile("testbed"))
+    assert not any("paired with motor commands" in w for w in testbed.warnings)

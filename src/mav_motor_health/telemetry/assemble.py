@@ -12,7 +12,10 @@ and current follow from the command with :func:`.mavlink_esc.motor_inputs`, the 
 agent uses, so a replayed log and the same flight streamed live give the same table.
 
 Commands and context are aligned to each ESC sample by previous-value hold (the last value at or before
-the sample), so no value from the future is ever used — the same view the live agent has.
+the sample), so no value from the future is ever used — the same view the live agent has. The table's
+``meta`` says how closely the samples are paired with their commands (``command_age_s``, the held
+command's age, 95th percentile; ``pairing_s``, the larger of that and the reader's
+``sample_time_uncertainty_s``).
 """
 
 from __future__ import annotations
@@ -118,12 +121,24 @@ def motor_table(
     if esc.motor_temp_c is not None:
         columns["motor_temp_c"] = esc.motor_temp_c[keep]
     throttle = np.full(len(time_s), np.nan)
+    command_age = np.full(len(time_s), np.nan)
     for m, series in commands.items():
         sel = motors == m
         if sel.any():
             t, v = _sorted_series(series)
             throttle[sel] = hold_previous(t, v, time_s[sel], COMMAND_MAX_AGE_S)
+            command_age[sel] = time_s[sel] - hold_previous(t, t, time_s[sel], COMMAND_MAX_AGE_S)
     columns["throttle"] = throttle
+    meta = dict(meta)
+    # How far the command paired with a sample may be from the one the motor had when it was measured:
+    # the held command's age (95th percentile), or how uncertain the sample's own time is if that is more
+    # (the reader says: a .tlog's ESC packet is up to one message interval older than its stamp). The
+    # balance rule needs them within a few milliseconds in gusty flight (docs/flight.md, section 6,
+    # "Through the logs").
+    ages = command_age[np.isfinite(command_age)]
+    if ages.size:
+        meta["command_age_s"] = float(np.percentile(ages, 95))
+        meta["pairing_s"] = max(meta["command_age_s"], float(meta.get("sample_time_uncertainty_s") or 0.0))
     if battery_voltage is not None and len(battery_voltage[0]):
         t, v = _sorted_series(battery_voltage)
         battery = hold_previous(t, v, time_s, CONTEXT_MAX_AGE_S)
@@ -139,7 +154,7 @@ def motor_table(
     columns["voltage_v"], columns["current_a"] = mavlink_esc.motor_inputs(
         throttle, columns["bus_voltage_v"], columns["esc_current_a"]
     )
-    return TelemetryTable(columns, source=str(path), meta=dict(meta))
+    return TelemetryTable(columns, source=str(path), meta=meta)
 
 
 def no_esc_error(path: Path, fmt: str, counts: Mapping[str, int], wanted: str) -> DataError:

@@ -421,7 +421,14 @@ def read_tlog(path: str | Path) -> TelemetryTable:
         if key in params:
             vehicle_info[key.lower()] = int(params[key])
     end_s = (max(int(v.max()) for v in msgs.time_us.values() if len(v)) - msgs.first_time_us) / 1e6
+    # an ESC_TELEMETRY message carries each ESC's last packet, without its time: up to one message
+    # interval older than the message's stamp
+    esc_intervals = np.concatenate(
+        [np.diff(series_time(name)) for name in [*esc_names, "ESC_STATUS"] if name in msgs] or [np.zeros(0)]
+    )
+    positive = esc_intervals[esc_intervals > 0]
     meta = {
+        "sample_time_uncertainty_s": float(np.median(positive)) if positive.size else None,
         "format": "tlog",
         "params": params,
         "vehicle": vehicle_info,
