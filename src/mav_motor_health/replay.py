@@ -303,7 +303,7 @@ def pairing_note(meta: Mapping[str, Any], profile: ThresholdProfile) -> str | No
         f"ESC samples are paired with motor commands only to within about {1000 * pairing:.0f} ms in this "
         f"log; the {profile.name!r} profile holds its benchmark figures with commands within about 5 ms. "
         "Expect false fault events in gusty or aggressive flight and less sensitivity to small faults "
-        "(docs/flight.md, section 6, \"Through the logs\"). Log or stream the ESC telemetry and the motor "
+        '(docs/flight.md, section 6, "Through the logs"). Log or stream the ESC telemetry and the motor '
         "outputs at 200 Hz to avoid this."
     )
 
