@@ -102,8 +102,8 @@ class BalanceCarry:
     voltage: ResponseCarry = field(default_factory=ResponseCarry)
     omega: ResponseCarry = field(default_factory=ResponseCarry)
     current: ResponseCarry = field(default_factory=ResponseCarry)
+    speed_balance: ResponseCarry = field(default_factory=ResponseCarry)
     electrical: ResponseCarry = field(default_factory=ResponseCarry)
-    mechanical: ResponseCarry = field(default_factory=ResponseCarry)
     zero_current: ResponseCarry = field(default_factory=ResponseCarry)
     sensed: ResponseCarry = field(default_factory=ResponseCarry)
     weight: ResponseCarry = field(default_factory=ResponseCarry)
@@ -200,6 +200,10 @@ def balance_deviations(
     ``tau_s·max(1, a/activity_ref_v)``, at most ``tau_max_s`` (a zigzagging input needs more samples
     for the same certainty).
 
+    ``current_a`` is the motor current. Given ``input_current_a`` (the ESC's reading of its input current)
+    and ``duty`` (the command, 0..1), the electrical balance uses those, weighted by the duty (see the
+    module doc), and ``current_a`` only says where a current is known.
+
     NaN speed or current (a lost sample, a missing sensor) hold the low-passes; Δi is NaN where the
     current is NaN, Δω needs only voltage and speed.
     """
@@ -242,9 +246,9 @@ def balance_deviations(
     d_mean, c_d = first_order_response(t, weight, tau, carry.weight)
     zero = np.where(np.isfinite(sensed), (sensed == 0.0).astype(float), np.nan)
     zero_share, c_z = first_order_response(t, zero, tau, carry.zero_current)
-    sb_mean, c_e = first_order_response(t, speed_balance, tau, carry.electrical)
+    sb_mean, c_sb = first_order_response(t, speed_balance, tau, carry.speed_balance)
     electrical = weight * (v - p.k_e * w) - p.R_ohm * sensed
-    e_mean, c_m = first_order_response(t, electrical, tau, carry.mechanical)
+    e_mean, c_e = first_order_response(t, electrical, tau, carry.electrical)
     inertia = p.J_kg_m2 or 0.0
     accel_torque = inertia * (w - w_mean) / tau
     accel_torque = np.where(np.isfinite(accel_torque), accel_torque, 0.0)
@@ -277,8 +281,8 @@ def balance_deviations(
         voltage=c_v,
         omega=c_w,
         current=c_i,
+        speed_balance=c_sb,
         electrical=c_e,
-        mechanical=c_m,
         zero_current=c_z,
         sensed=c_s,
         weight=c_d,
