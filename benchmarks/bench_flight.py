@@ -1,7 +1,7 @@
 """Diagnosis in flight on simulated hexacopter flights the profile was not tuned on, and the PX4-style
 current-vs-throttle baseline on the same flights.
 
-Run: ``.venv/bin/python benchmarks/bench_flight.py [--hours H] [--jobs N]`` (``./dev bench`` runs all
+Run: ``.venv/bin/python benchmarks/bench_flight.py [--hours H] [--jobs N] [--seed-offset N]`` (``./dev bench`` runs all
 benchmarks). Prints three tables:
 
 1. per turbulence level and fault: accuracy after onset (share of quasi-steady samples of the faulty motor
@@ -13,7 +13,8 @@ benchmarks). Prints three tables:
    event, on the same calm flights, and what each method calls the fault.
 
 The flight profile used is ``params/profiles/flight.toml`` (``mav-motor-health tune --campaign``: seeds
-from 1000); this benchmark flies seeds from 2000 and 3000.
+from 1000); this benchmark flies seeds from 2000 and 3000 (``--seed-offset N`` moves table 1's fault
+flights to seeds from 2000 + N: another draw of the same plan).
 """
 
 from __future__ import annotations
@@ -84,14 +85,21 @@ def main() -> int:
     parser.add_argument("--hours", type=float, default=0.25, help="healthy flight per turbulence level [h]")
     parser.add_argument("--jobs", type=int, default=None)
     parser.add_argument("--profile", default="flight", help="profile TOML or name (default: flight)")
+    parser.add_argument(
+        "--seed-offset",
+        type=int,
+        default=0,
+        help="fly table 1's fault flights with seeds this much higher (another draw; default 0: seeds from 2000)",
+    )
     args = parser.parse_args()
     started = time.perf_counter()
     params = load_motor_params()
     profile = load_profile(args.profile)
 
     # 1. faults at three turbulence levels (test seeds)
-    flights = run_flights(benchmark_fault_cases(), args.jobs)
-    print(f"1. Faults in flight (test seeds; profile {args.profile})")
+    flights = run_flights(benchmark_fault_cases(args.seed_offset), args.jobs)
+    seeds = "test seeds" + (f" + {args.seed_offset}" if args.seed_offset else "")
+    print(f"1. Faults in flight ({seeds}; profile {args.profile})")
     print(f"{'turbulence':10s} {'fault':5s} {'accuracy':>9s} {'detect s':>9s} {'NORMAL':>8s} {'false':>5s}")
     detections = []
     for turbulence in TURBULENCE_LEVELS:

@@ -106,10 +106,11 @@ def _run(case: FlightCase) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     return table_columns(run_scenario(scenario)), scenario.truth()
 
 
-def benchmark_fault_cases() -> list[FlightCase]:
+def benchmark_fault_cases(seed_offset: int = 0) -> list[FlightCase]:
     """The benchmark's fault flights (``benchmarks/bench_flight.py``, ``bench_telemetry_path.py``): per
     turbulence level and fault two 50-s flights with the fault at 25 s, seeds from 2000 (the training
-    campaign's are from 1000), the motor rotating through the six."""
+    campaign's are from 1000), the motor rotating through the six. ``seed_offset`` flies the same plan
+    with other seeds (another draw of turbulence and sensor noise)."""
     cases = []
     for k, turbulence in enumerate(TURBULENCE_LEVELS):
         for j, fault in enumerate(FAULTS):
@@ -117,7 +118,7 @@ def benchmark_fault_cases() -> list[FlightCase]:
                 cases.append(
                     FlightCase(
                         turbulence,
-                        2000 + 100 * k + 10 * j + rep,
+                        2000 + seed_offset + 100 * k + 10 * j + rep,
                         50.0,
                         fault=fault,
                         motor=1 + (j + 2 * k + rep) % 6,
