@@ -11,7 +11,8 @@ one. The balance rule needs the voltage the motor saw when it was measured, so a
 message interval off adds noise that the tuned bands do not cover.
 
 For a calm and a gusty healthy flight (``flight/healthy_calm``'s manoeuvres), this prints, per path,
-the share of judged samples that are NORMAL and the false fault events: the simulator's table (as
+the share of the measured samples that are judged, the share of judged samples that are NORMAL (— where
+none is judged) and the false fault events: the simulator's table (as
 ``bench_flight.py`` sees it), CSV (the same), .bin with RCOU at 10 and 50 Hz, .tlog with
 ESC_TELEMETRY and SERVO_OUTPUT_RAW at 10, 50, 100 and 200 Hz (the ESCs themselves report at 10–50 Hz;
 the stream rate bounds how much older than its message's command a packet can be). Then the fault flights
@@ -75,7 +76,7 @@ def main() -> int:
     print(
         f"healthy flights of {args.seconds:.0f} s (flight/healthy_calm manoeuvres, seed {args.seed}), profile flight"
     )
-    print(f"{'turbulence':10s} {'path':16s} {'NORMAL':>8s} {'false events':>13s}")
+    print(f"{'turbulence':10s} {'path':16s} {'judged':>7s} {'NORMAL':>8s} {'false events':>13s}")
     with tempfile.TemporaryDirectory() as tmp:
         for turbulence in ("calm", "gusty"):
             for name, ext, rate_hz in PATHS:
@@ -97,9 +98,11 @@ def main() -> int:
                     table = sources.read(out)
                 result = diagnose(table, params, profile)
                 healthy = score({c: result[c] for c in result.names}, scenario.truth())
-                print(
-                    f"{turbulence:10s} {name:16s} {healthy.normal_accuracy_pct:7.2f}% {healthy.false_events:13d}"
-                )
+                measured = np.isfinite(result["omega_rad_s"]) | np.isfinite(result["current_a"])
+                judged = 100.0 * np.mean(result["steady"][measured])
+                normal = healthy.normal_accuracy_pct
+                shown = "      —" if normal is None else f"{normal:7.2f}%"
+                print(f"{turbulence:10s} {name:16s} {judged:6.1f}% {shown:>8s} {healthy.false_events:13d}")
         # 2. the benchmark's fault flights (bench_flight.py's seeds and motors) as the agent gets them: a
         # .tlog streamed at the 200 Hz it asks for (with the vehicle's battery monitor), against the table
         print("\nfault flights of bench_flight.py (2 per fault, fault at 25 s): table / .tlog at 200 Hz")

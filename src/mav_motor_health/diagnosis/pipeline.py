@@ -19,6 +19,7 @@ from ..model.equations import current_from_speed, steady_state
 from ..model.params import MotorParams
 from ..model.predict import predict_steady
 from ..telemetry.table import TelemetryTable
+from .pairing import PairingCarry, pairing_error_rad_s
 from .persistence import PersistenceCarry, announce
 from .plausibility import (
     CURRENT_UNTRUSTED,
@@ -69,6 +70,7 @@ class MotorCarry:
     stall: StallCarry = field(default_factory=StallCarry)
     slow_omega: ResponseCarry = field(default_factory=ResponseCarry)
     slow_current: ResponseCarry = field(default_factory=ResponseCarry)
+    pairing: PairingCarry = field(default_factory=PairingCarry)
 
 
 def diagnose_motor(
@@ -85,6 +87,7 @@ def diagnose_motor(
     sensor_current_a: NDArray[np.float64] | None = None,
     extra_flags: NDArray[np.int16] | None = None,
     context: Mapping[str, NDArray[np.float64]] | None = None,
+    pairing_s: float | None = None,
 ) -> tuple[dict[str, NDArray], MotorCarry]:
     """Diagnose one motor's samples (increasing time); returns result columns and the new carry.
 
@@ -93,7 +96,10 @@ def diagnose_motor(
     ``extra_flags`` :class:`SensorIssue` flags found across motors (the currents' sum); ``context`` the
     samples' other columns (temperatures, altitude...), which a model with fitted effects
     (``params.effects``) reads; the base model ignores it, and so does the balance rule, which checks the
-    base equations (a fitted effect's extra terms are not yet part of its balances).
+    base equations (a fitted effect's extra terms are not yet part of its balances). ``pairing_s`` is how
+    far apart the source may have paired each sample and its command (a log's ``meta["pairing_s"]``;
+    None or 0: the command of the sample's own instant), which the balance rule weighs
+    (:mod:`.pairing`).
     """
     carry = carry or MotorCarry()
     t = np.asarray(time_s, dtype=float)
@@ -215,8 +221,25 @@ def diagnose_motor(
     )
     if extra_flags is not None:
         flags = flags | extra_flags
-    current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_a)
     speed_band = profile.speed_band(activity)
+    pairing_error = np.full(t.shape, np.nan)
+    pairing_carry = carry.pairing
+    if rule.kind == "balance" and pairing_s:
+        # a command paired loosely with its sample: the current is not used where the voltage error it
+        # could cause is a sizeable part of the speed band, nothing is judged where it is a sizeable part
+        # of the speed-only band (diagnosis/pairing.py)
+        pairing_error, pairing_carry = pairing_error_rad_s(
+            params, t, v, omega_pred, pairing_s, bal.tau_s, carry.pairing
+        )
+        plaus = profile.plausibility
+        flags = np.where(
+            pairing_error > plaus.pairing_current_share * np.asarray(speed_band, dtype=float),
+            flags | SensorIssue.CURRENT_UNPAIRED,
+            flags,
+        ).astype(np.int16)
+        speed_only_band = np.maximum(speed_band, profile.speed_only_band_frac * np.abs(omega_pred))
+        steady = steady & ~(pairing_error > plaus.pairing_speed_share * speed_only_band)
+    current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_a)
     current_band = profile.current_halfwidth_a(judged_v, activity)
     current_band_below = profile.current_halfwidth_a(judged_v, activity, below=True)
     state, depth = classify_depth(
@@ -289,6 +312,7 @@ def diagnose_motor(
         "omega_slow_judged_rad_s": np.full(t.shape, np.nan) if slow is None else omega_pred + slow[0],
         "current_slow_judged_a": np.full(t.shape, np.nan) if slow is None else current_pred + slow[1],
         "slow_ready": np.zeros(t.shape, dtype=bool) if slow is None else slow[2],
+        "pairing_error_rad_s": pairing_error,
     }
     new_carry = MotorCarry(
         steady=steady_carry,
@@ -301,6 +325,7 @@ def diagnose_motor(
         stall=stall_carry,
         slow_omega=slow_carries[0],
         slow_current=slow_carries[1],
+        pairing=pairing_carry,
     )
     return columns, new_carry
 
@@ -377,8 +402,10 @@ def diagnose(
         "omega_slow_judged_rad_s": np.full(n, np.nan),
         "current_slow_judged_a": np.full(n, np.nan),
         "slow_ready": np.zeros(n, dtype=bool),
+        "pairing_error_rad_s": np.full(n, np.nan),
     }
     motors = ordered["motor"]
+    pairing = table.meta.get("pairing_s")
 
     def part(values: NDArray | None, sel: NDArray) -> NDArray | None:
         return None if values is None else values[sel]
@@ -416,6 +443,7 @@ def diagnose(
             sensor_current_a=part(sensor_current, sel),
             extra_flags=part(sum_flags, sel),
             context=context,
+            pairing_s=None if pairing is None else float(pairing),
         )
         for name, values in cols.items():
             out[name][sel] = values
@@ -445,6 +473,7 @@ def diagnose(
         omega_slow_judged_rad_s=out["omega_slow_judged_rad_s"],
         current_slow_judged_a=out["current_slow_judged_a"],
         slow_ready=out["slow_ready"],
+        pairing_error_rad_s=out["pairing_error_rad_s"],
     )
     for name in ordered.names:
         result.setdefault(name, ordered[name])
@@ -515,8 +544,13 @@ class StreamingDiagnoser:
         sensor_current_a: NDArray[np.float64] | None = None,
         extra_flags: NDArray[np.int16] | None = None,
         context: Mapping[str, NDArray[np.float64]] | None = None,
+        pairing_s: float | None = None,
     ) -> dict[str, NDArray]:
-        """Diagnose a few new samples of one motor at once (same results as one by one, less overhead)."""
+        """Diagnose a few new samples of one motor at once (same results as one by one, less overhead).
+
+        ``pairing_s``: how far apart the source pairs samples and commands (None: at the same instant;
+        the live agent pairs each ESC packet with the command of its message).
+        """
         motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
 
         def arr(x: NDArray | None) -> NDArray[np.float64] | None:
@@ -535,6 +569,7 @@ class StreamingDiagnoser:
             sensor_current_a=arr(sensor_current_a),
             extra_flags=extra_flags,
             context=context,
+            pairing_s=pairing_s,
         )
         return cols
 

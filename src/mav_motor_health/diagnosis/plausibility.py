@@ -52,6 +52,8 @@ class SensorIssue(enum.IntFlag):
     SPEED_MISSING = 16
     SPEED_STUCK = 32
     SPEED_RANGE = 64
+    #: the log pairs samples with commands too loosely for the current's balance (diagnosis/pairing.py)
+    CURRENT_UNPAIRED = 128
 
     @classmethod
     def describe(cls, code: int) -> str:
@@ -63,7 +65,8 @@ CURRENT_UNTRUSTED = (
     SensorIssue.CURRENT_MISSING
     | SensorIssue.CURRENT_STUCK
     | SensorIssue.CURRENT_RANGE
-    | (SensorIssue.CURRENT_SUM)
+    | SensorIssue.CURRENT_SUM
+    | SensorIssue.CURRENT_UNPAIRED
 )
 SPEED_UNTRUSTED = SensorIssue.SPEED_MISSING | SensorIssue.SPEED_STUCK | SensorIssue.SPEED_RANGE
 
@@ -78,6 +81,10 @@ class PlausibilityRule:
     sum_tolerance: float = 0.35
     sum_min_battery_a: float = 3.0
     sum_tau_s: float = 5.0
+    #: a pairing error (diagnosis/pairing.py) above this share of the speed band: the current is not used
+    pairing_current_share: float = 1.0
+    #: ... above this share of the speed-only band: the sample is not judged
+    pairing_speed_share: float = 0.5
 
     def __post_init__(self) -> None:
         if not (
@@ -87,11 +94,16 @@ class PlausibilityRule:
             and self.speed_max_rad_s > 0
             and 0 < self.sum_tolerance < 1
             and self.sum_tau_s > 0
+            and self.pairing_current_share > 0
+            and self.pairing_speed_share > 0
         ):
             raise ConfigError(
                 "inconsistent plausibility limits",
                 key="plausibility",
-                expected="stuck_s > 0, current_max_a > current_min_a, 0 < sum_tolerance < 1, ...",
+                expected=(
+                    "stuck_s > 0, current_max_a > current_min_a, 0 < sum_tolerance < 1, "
+                    "pairing shares > 0, ..."
+                ),
             )
 
 
