@@ -214,3 +214,28 @@ def test_streaming_equals_batch_in_flight_mode(paper_motor) -> None:
         )
     assert [rows[j]["announced"] for j in range(len(batch))] == batch["announced"].tolist()
     assert [rows[j]["sensor_flags"] for j in range(len(batch))] == batch["sensor_flags"].tolist()
+
+
+def test_pairing_error_is_the_speed_a_command_that_far_off_could_move(paper_motor) -> None:
+    """A ramp of 2 V/s with commands paired 50 ms off: the voltage can be 0.1 V off, which moves the balance
+    rule's speed deviation by k_t·0.1 V/D; fed in pieces it gives the same (the agent's way)."""
+    from mav_motor_health.diagnosis.pairing import pairing_error_rad_s
+
+    t = np.arange(0.0, 4.0, 0.02)
+    v = 5.0 + 2.0 * t
+    w_model = steady_state(paper_motor, v).omega_rad_s
+    whole, _ = pairing_error_rad_s(paper_motor, t, v, w_model, 0.05, 0.15)
+    p = paper_motor
+    g = p.k * p.C_p * w_model ** (p.k - 1.0) + p.B
+    expected = p.k_t * 2.0 * 0.05 / (p.k_t * p.k_e + p.R_ohm * g)
+    settled = t > 1.0
+    np.testing.assert_allclose(whole[settled], expected[settled], rtol=1e-6)
+    carry, parts = None, []
+    for k in range(0, t.size, 7):
+        part, carry = pairing_error_rad_s(
+            paper_motor, t[k : k + 7], v[k : k + 7], w_model[k : k + 7], 0.05, 0.15, carry
+        )
+        parts.append(part)
+    np.testing.assert_allclose(np.concatenate(parts), whole)
+    still, _ = pairing_error_rad_s(paper_motor, t, np.full(t.size, 7.0), w_model, 0.05, 0.15)
+    assert np.all(still == 0.0)  # a command that stands still is paired right whenever it was read

@@ -277,6 +277,9 @@ def write_diagnosis_csv(result: TelemetryTable, path: Path) -> None:
 
     labels = [s.label for s in MotorState]
     extra = [c for c in CONTEXT_COLUMNS if c in result]
+    pairing = result.get("pairing_error_rad_s")
+    if pairing is not None and np.isfinite(pairing).any():  # the log said how closely it pairs (pairing.py)
+        extra.append("pairing_error_rad_s")
     columns: list[Column] = []
     for name in [*DIAGNOSIS_COLUMNS, *extra]:
         values = result[name]
@@ -302,9 +305,10 @@ def pairing_note(meta: Mapping[str, Any], profile: ThresholdProfile) -> str | No
     return (
         f"ESC samples are paired with motor commands only to within about {1000 * pairing:.0f} ms in this "
         f"log; the {profile.name!r} profile holds its benchmark figures with commands within about 5 ms. "
-        "Expect false fault events in gusty or aggressive flight and less sensitivity to small faults "
-        '(docs/flight.md, section 6, "Through the logs"). Log or stream the ESC telemetry and the motor '
-        "outputs at 200 Hz to avoid this."
+        "Where the commands move fast (gusts, manoeuvres) the diagnosis does not use the current there, or "
+        "does not judge at all (pairing_error_rad_s and sensor flag 128, current_unpaired, in "
+        'diagnosis.csv), and small faults go unseen (docs/flight.md, section 6, "Through the logs"). Log '
+        "or stream the ESC telemetry and the motor outputs at 200 Hz to avoid this."
     )
 
 
