@@ -12,7 +12,8 @@ message interval off adds noise that the tuned bands do not cover.
 
 For a calm and a gusty healthy flight (``flight/healthy_calm``'s manoeuvres), this prints, per path,
 the share of the measured samples that are judged, the share of judged samples that are NORMAL (— where
-none is judged) and the false fault events: the simulator's table (as
+none is judged) and the false fault events, and for the logs the same without the pairing rule
+(``diagnosis/pairing.py``: the log's ``pairing_s`` left out): the simulator's table (as
 ``bench_flight.py`` sees it), CSV (the same), .bin with RCOU at 10 and 50 Hz, .tlog with
 ESC_TELEMETRY and SERVO_OUTPUT_RAW at 10, 50, 100 and 200 Hz (the ESCs themselves report at 10–50 Hz;
 the stream rate bounds how much older than its message's command a packet can be). Then the fault flights
@@ -76,7 +77,10 @@ def main() -> int:
     print(
         f"healthy flights of {args.seconds:.0f} s (flight/healthy_calm manoeuvres, seed {args.seed}), profile flight"
     )
-    print(f"{'turbulence':10s} {'path':16s} {'judged':>7s} {'NORMAL':>8s} {'false events':>13s}")
+    print(
+        f"{'turbulence':10s} {'path':16s} {'judged':>7s} {'NORMAL':>8s} {'false events':>13s}"
+        f"   {'without the pairing rule: NORMAL':>32s} {'false':>6s}"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         for turbulence in ("calm", "gusty"):
             for name, ext, rate_hz in PATHS:
@@ -102,7 +106,12 @@ def main() -> int:
                 judged = 100.0 * np.mean(result["steady"][measured])
                 normal = healthy.normal_accuracy_pct
                 shown = "      —" if normal is None else f"{normal:7.2f}%"
-                print(f"{turbulence:10s} {name:16s} {judged:6.1f}% {shown:>8s} {healthy.false_events:13d}")
+                line = f"{turbulence:10s} {name:16s} {judged:6.1f}% {shown:>8s} {healthy.false_events:13d}"
+                if table.meta.get("pairing_s") is not None:  # the same samples, the log's pairing not weighed
+                    bare = diagnose(TelemetryTable(table.columns, source=table.source), params, profile)
+                    unweighed = score({c: bare[c] for c in bare.names}, scenario.truth())
+                    line += f"   {unweighed.normal_accuracy_pct:31.2f}% {unweighed.false_events:6d}"
+                print(line)
         # 2. the benchmark's fault flights (bench_flight.py's seeds and motors) as the agent gets them: a
         # .tlog streamed at the 200 Hz it asks for (with the vehicle's battery monitor), against the table
         print("\nfault flights of bench_flight.py (2 per fault, fault at 25 s): table / .tlog at 200 Hz")
