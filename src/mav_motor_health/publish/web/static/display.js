@@ -310,10 +310,15 @@
         const kind = this.worstKind(this.vehicles.get(id), now);
         b.className = "kind-" + kind + (id === this.selected ? " selected" : "");
         b.setAttribute("aria-pressed", String(id === this.selected));
-        b.textContent = id;
+        if (b.textContent !== id) b.textContent = id;
       }
-      const order = ids.map((id) => existing.get(id) || picker.querySelector(`button[data-vehicle="${id}"]`));
-      order.forEach((b) => picker.appendChild(b));
+      // Reorder only when a vehicle joined: moving a button on every render (five times a second per
+      // vehicle) could take it from under a click between the press and the release.
+      const shown = [...picker.querySelectorAll("button")].map((b) => b.dataset.vehicle);
+      if (shown.join("\n") !== ids.join("\n")) {
+        const order = ids.map((id) => existing.get(id) || picker.querySelector(`button[data-vehicle="${id}"]`));
+        order.forEach((b) => picker.appendChild(b));
+      }
     }
 
     render() {
