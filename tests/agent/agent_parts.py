@@ -95,9 +95,16 @@ class MqttListener:
         self.client = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=False)
         self.client.on_message = self._on_message
         self.client.on_connect = lambda c, u, f, rc, p: c.subscribe(topic, qos=1)
+        # a test publishes right after making its listener: wait until the broker has the subscription, or
+        # a loaded machine delivers the first messages before it (a fresh-clone CI run missed run 1's events)
+        self.subscribed = threading.Event()
+        self.client.on_subscribe = lambda c, u, mid, codes, p: self.subscribed.set()
         self.client.reconnect_delay_set(0.1, 0.5)
         self.client.connect("127.0.0.1", port, keepalive=5)
         self.client.loop_start()
+        if not self.subscribed.wait(10.0):
+            self.client.loop_stop()
+            raise TimeoutError(f"the listener did not subscribe to {topic} on port {port} within 10 s")
 
     def _on_message(self, client: Any, userdata: Any, msg: Any) -> None:
         try:
