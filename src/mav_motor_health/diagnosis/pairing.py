@@ -9,7 +9,7 @@ the balance rule uses can be off by
     u = low-pass(|ΔV/Δt|) · pairing_s
 
 (low-passed as the balances are). In the balance rule a voltage error δV moves the speed deviation by
-``k_t·δV/D`` and the current deviation by ``G·δV/D`` (``D`` and ``G`` as in :mod:`..model.balance`): the
+``k_t·δV/D`` and the current deviation by ``G·δV/D`` (:func:`~..model.balance.linearised_slopes`): the
 direction of an open transistor (F4.1), which is what loosely paired logs are misread as. The *pairing
 error* is that speed, ``k_t·u/D`` [rad/s]; the pipeline compares it with the bands
 (:attr:`~.plausibility.PlausibilityRule.pairing_current_share`, ``pairing_speed_share``): where it is a
@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..model.balance import linearised_slopes
 from ..model.dynamics import ResponseCarry, first_order_response
 from ..model.params import MotorParams
 
@@ -63,11 +64,8 @@ def pairing_error_rad_s(
         rate = np.abs(v - previous_v) / (t - previous_t)
     rate = np.where(np.isfinite(rate) & (t > previous_t), rate, np.nan)  # NaN holds the low-pass
     mean_rate, rate_carry = first_order_response(t, rate, tau_s, carry.rate)
-    p = params
-    w = np.maximum(np.asarray(omega_model_rad_s, dtype=float), 0.0)
-    g = p.k * p.C_p * w ** (p.k - 1.0) + p.B
-    d = p.k_t * p.k_e + p.R_ohm * g
-    error = p.k_t * np.nan_to_num(mean_rate) * pairing_s / d
+    _, d = linearised_slopes(params, omega_model_rad_s)
+    error = params.k_t * np.nan_to_num(mean_rate) * pairing_s / d
     finite = np.isfinite(v)
     last = np.flatnonzero(finite)
     new = PairingCarry(

@@ -237,7 +237,7 @@ def diagnose_motor(
             flags | SensorIssue.CURRENT_UNPAIRED,
             flags,
         ).astype(np.int16)
-        speed_only_band = np.maximum(speed_band, profile.speed_only_band_frac * np.abs(omega_pred))
+        speed_only_band = profile.speed_only_band(speed_band, omega_pred)
         steady = steady & ~(pairing_error > plaus.pairing_speed_share * speed_only_band)
     current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_a)
     current_band = profile.current_halfwidth_a(judged_v, activity)

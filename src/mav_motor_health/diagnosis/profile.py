@@ -272,6 +272,13 @@ class ThresholdProfile:
             return self.speed_band_rad_s
         return self.speed_band_rad_s + self._widening(activity_v, 1)
 
+    def speed_only_band(
+        self, speed_band_rad_s: ArrayLike, omega_model_rad_s: ArrayLike
+    ) -> NDArray[np.float64]:
+        """Half-width of the speed band without a trusted current [rad/s]: the wider of the speed band and
+        ``speed_only_band_frac`` of the model speed (a model error cannot be told from a fault)."""
+        return np.maximum(speed_band_rad_s, self.speed_only_band_frac * np.abs(omega_model_rad_s))
+
     def _widening(self, activity_v: ArrayLike, column: int) -> NDArray[np.float64]:
         """Column 1 (speed), 2 (current; above the model with four columns) or 3 (current below the model)
         of ``activity_band`` at each activity (linear, held outside)."""

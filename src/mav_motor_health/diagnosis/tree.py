@@ -207,7 +207,7 @@ def classify_depth(
     speed_only = speed_only & np.isfinite(w) & np.isfinite(w_model)
     if np.any(speed_only):
         # Without current a model error cannot be told from a fault: ask for a large departure.
-        wide = np.maximum(band_w, profile.speed_only_band_frac * np.abs(w_model))
+        wide = profile.speed_only_band(band_w, w_model)
         only = np.full(w.shape, MotorState.NORMAL, dtype=np.int8)
         only[w < w_model - wide] = MotorState.SLOW
         only[w > w_model + wide] = MotorState.FAST

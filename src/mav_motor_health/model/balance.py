@@ -71,6 +71,7 @@ __all__ = [
     "balance_deviations",
     "censored_mean",
     "input_activity",
+    "linearised_slopes",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -179,6 +180,15 @@ def censored_mean(mean_a: ArrayLike, zero_share: ArrayLike) -> FloatArray:
     return np.where(censored & np.isfinite(p), z * sigma, m)
 
 
+def linearised_slopes(params: MotorParams, omega_rad_s: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """``G = k·C_p·ω^(k−1) + B`` and ``D = k_t·k_e + R·G`` at the model speed ``ω`` (negative read as 0):
+    a lasting voltage ``r_V`` moves the steady speed by ``−k_t·r_V/D`` (see the module doc)."""
+    p = params
+    w = np.maximum(np.asarray(omega_rad_s, dtype=float), 0.0)
+    g = p.k * p.C_p * w ** (p.k - 1.0) + p.B
+    return g, p.k_t * p.k_e + p.R_ohm * g
+
+
 def balance_deviations(
     params: MotorParams,
     time_s: ArrayLike,
@@ -258,9 +268,7 @@ def balance_deviations(
     with np.errstate(divide="ignore", invalid="ignore"):
         rv_mean = e_mean / np.where(d_mean >= MIN_MEAN_DUTY, d_mean, np.nan)
     model = steady_state(p, v_mean)
-    w_m = np.maximum(model.omega_rad_s, 0.0)
-    g = p.k * p.C_p * w_m ** (p.k - 1.0) + p.B
-    d = p.k_t * p.k_e + p.R_ohm * g
+    _, d = linearised_slopes(p, model.omega_rad_s)
     delta_w = -sb_mean / d
     # the current at the deviated speed, from eq. 1: Δi = −(k_e·Δω + r_V)/R (= (k_e·r_T − G·r_V)/D)
     delta_i = -(p.k_e * delta_w + rv_mean) / p.R_ohm
