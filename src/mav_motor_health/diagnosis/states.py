@@ -25,6 +25,7 @@ class MotorState(enum.IntEnum):
     SLOW = 9  # speed only (no trusted current): slower than the command should give: F1.1 or F4.1
     STALLED = 10  # speed only: stopped although commanded: F2.1 or F4.2
     FAST = 11  # speed only: faster than the command should give: F3.1
+    UNCALIBRATED = 12  # the motor model does not describe this vehicle: no fault can be named
 
     @property
     def label(self) -> str:
@@ -62,6 +63,7 @@ _LABELS = {
     MotorState.SLOW: "SLOW",
     MotorState.STALLED: "STALLED",
     MotorState.FAST: "FAST",
+    MotorState.UNCALIBRATED: "UNCALIBRATED",
 }
 _DESCRIPTIONS = {
     MotorState.NORMAL: "normal",
@@ -76,6 +78,7 @@ _DESCRIPTIONS = {
     MotorState.SLOW: "slow (F1.1 or F4.1)",
     MotorState.STALLED: "stalled (F2.1 or F4.2)",
     MotorState.FAST: "fast (F3.1)",
+    MotorState.UNCALIBRATED: "model does not fit this vehicle",
 }
 _BY_LABEL = {label: state for state, label in _LABELS.items()}
 _FAULTS = frozenset(

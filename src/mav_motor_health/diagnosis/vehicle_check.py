@@ -1,0 +1,236 @@
+"""Does the motor model describe this vehicle at all? Checked before any fault is announced.
+
+A fault is one motor departing from the model while its siblings follow it. When *most* motors depart
+from the model the same way (a bundled paper motor on a vehicle with another motor, a propeller that is
+not the one fitted), the model is what is wrong, and naming a
+fault on every motor would be a guess. This check keeps, per motor, the ratio of sums
+
+    speed departure = Σ ω_measured / Σ ω_model − 1      (samples where the model sees the motor turning)
+
+and, once enough motors have shown enough of themselves, decides for the vehicle:
+
+- **does not fit** where more than half of the vehicle's motors depart by more than ``speed_departure``
+  in the same direction: the diagnosis announces :attr:`~.states.MotorState.UNCALIBRATED` on every motor instead of faults;
+- **checking** while fewer than that many motors (at least ``min_motors``) have ``min_samples`` turning
+  samples over ``min_span_s``: faults are not announced yet (they are announced as soon as the
+  check passes, if they still hold);
+- **fits** otherwise; and always where the vehicle has fewer than ``min_motors`` motors (a single motor
+  on a test stand cannot be told from its model by consensus).
+
+The departure is dimensionless: a wrong motor type or propeller moves every motor by tens of percent (the
+bundled paper motor on a real PX4 quad: −75 %; on ArduPilot SITL's hexa: −17 to −26 %), while the spread
+of one motor type (KV tolerance, a few percent) and a flight's transients averaged over two seconds stay
+well below the default 10 % (simulated healthy and faulty flights in calm to gusty air: healthy motors
+within ±8 %; ``tests/test_vehicle_check.py``). The current is not used: in gusty air its ratio to the
+steady-state model drifts by +20–30 % on healthy motors, and a current that reads wrongly on every motor
+is the plausibility checks' and the identification's business. The rule is streaming: rows are fed in
+time order (any motors), the carry holds a count and two sums per motor, and the live agent feeding rows one at a
+time gets the same codes as replay feeding the whole log (same additions in the same order).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import ConfigError
+from .states import MotorState
+
+__all__ = ["MotorEvidence", "VehicleCheck", "VehicleCheckRule", "VehicleFit", "apply_vehicle_fit"]
+
+#: Up to this many rows (the live agent's batches) the check runs as a plain loop.
+_SCALAR_MAX = 16
+
+
+class VehicleFit:
+    """Per-row verdict codes of the vehicle check (int8)."""
+
+    FITS = 0  # or not applicable (fewer motors than the consensus needs)
+    CHECKING = 1
+    SPEED_OFF = 2
+
+
+@dataclass(frozen=True)
+class VehicleCheckRule:
+    """Settings of the vehicle check (profile section ``[vehicle_check]``)."""
+
+    speed_departure: float = 0.10
+    min_samples: int = 5
+    min_span_s: float = 2.0
+    min_motors: int = 3
+    enabled: bool = True
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.speed_departure, (int, float)) and 0 < self.speed_departure < 1):
+            raise ConfigError(
+                f"{self.speed_departure!r}",
+                key="vehicle_check.speed_departure",
+                expected="a fraction 0 < f < 1",
+            )
+        if not (isinstance(self.min_samples, int) and self.min_samples >= 1):
+            raise ConfigError(
+                f"{self.min_samples!r}", key="vehicle_check.min_samples", expected="an integer >= 1"
+            )
+        if not (isinstance(self.min_motors, int) and self.min_motors >= 2):
+            raise ConfigError(
+                f"{self.min_motors!r}", key="vehicle_check.min_motors", expected="an integer >= 2"
+            )
+        if not (isinstance(self.min_span_s, (int, float)) and self.min_span_s >= 0):
+            raise ConfigError(
+                f"{self.min_span_s!r}", key="vehicle_check.min_span_s", expected="a time >= 0 s"
+            )
+
+
+@dataclass
+class MotorEvidence:
+    """What the check has seen of one motor: its turning samples' count, sums and time span."""
+
+    samples: int = 0
+    speed_sum: float = 0.0
+    speed_model_sum: float = 0.0
+    first_s: float = math.inf
+    last_s: float = -math.inf
+
+    def departure(self) -> float:
+        """Σ ω / Σ ω_model − 1 (NaN before the first turning sample)."""
+        return self.speed_sum / self.speed_model_sum - 1.0 if self.speed_model_sum > 0 else math.nan
+
+
+@dataclass
+class VehicleCheck:
+    """The streaming vehicle check over all motors of one vehicle.
+
+    ``motors`` are the vehicle's motor numbers (its frame). ``stop_speed_rad_s``: below this model speed
+    a motor is not turning (the tree's stop speed).
+    """
+
+    rule: VehicleCheckRule
+    motors: Sequence[int]
+    stop_speed_rad_s: float
+    evidence: dict[int, MotorEvidence] = field(default_factory=dict)
+
+    @property
+    def applies(self) -> bool:
+        return self.rule.enabled and len(self.motors) >= self.rule.min_motors
+
+    @property
+    def needed(self) -> int:
+        """How many motors must have evidence for a verdict, and must agree for "does not fit"."""
+        return max(self.rule.min_motors, len(self.motors) // 2 + 1)
+
+    def update(
+        self,
+        time_s: ArrayLike,
+        motor: ArrayLike,
+        omega_rad_s: ArrayLike,
+        omega_model_rad_s: ArrayLike,
+    ) -> NDArray[np.int8]:
+        """The verdict at each row (:class:`VehicleFit` codes); rows in time order, any motors."""
+        t = np.asarray(time_s, dtype=float)
+        if not self.applies:
+            return np.zeros(t.size, dtype=np.int8)
+        m = np.asarray(motor, dtype=np.int64)
+        w = np.asarray(omega_rad_s, dtype=float)
+        wm = np.asarray(omega_model_rad_s, dtype=float)
+        with np.errstate(invalid="ignore"):
+            turning = np.isfinite(w) & np.isfinite(wm) & (wm > self.stop_speed_rad_s)
+        if t.size <= _SCALAR_MAX:
+            return self._update_rows(t, m, w, wm, turning)
+        return self._update_arrays(t, m, w, wm, turning)
+
+    def _update_rows(self, t, m, w, wm, turning) -> NDArray[np.int8]:
+        out = np.zeros(t.size, dtype=np.int8)
+        for r in range(t.size):
+            if turning[r]:
+                ev = self.evidence.setdefault(int(m[r]), MotorEvidence())
+                ev.samples += 1
+                ev.speed_sum += float(w[r])
+                ev.speed_model_sum += float(wm[r])
+                ev.first_s = min(ev.first_s, float(t[r]))
+                ev.last_s = max(ev.last_s, float(t[r]))
+            deps = [
+                ev.departure()
+                for ev in self.evidence.values()
+                if ev.samples >= self.rule.min_samples and ev.last_s - ev.first_s >= self.rule.min_span_s
+            ]
+            out[r] = self._verdict(
+                len(deps),
+                sum(d > self.rule.speed_departure for d in deps),
+                sum(d < -self.rule.speed_departure for d in deps),
+            )
+        return out
+
+    def _update_arrays(self, t, m, w, wm, turning) -> NDArray[np.int8]:
+        n = t.size
+        motors = sorted(set(self.evidence) | {int(x) for x in np.unique(m[turning])})
+        deps = np.full((n, len(motors)), np.nan)
+        for k, motor in enumerate(motors):
+            ev = self.evidence.setdefault(motor, MotorEvidence())
+            mine = turning & (m == motor)
+            seen = np.flatnonzero(mine)
+
+            def running(start: float, values: NDArray, mine: NDArray = mine) -> NDArray[np.float64]:
+                # the carry first, then each row's contribution: the additions a row-by-row run makes
+                return np.cumsum(np.concatenate([[start], np.where(mine, values, 0.0)]))[1:]
+
+            count = ev.samples + np.cumsum(mine)
+            speed_sum, model_sum = running(ev.speed_sum, w), running(ev.speed_model_sum, wm)
+            # the first turning sample's time matters only once there is one (evidence needs samples)
+            first = ev.first_s if seen.size == 0 else min(ev.first_s, float(t[seen[0]]))
+            last = np.maximum.accumulate(np.where(mine, t, ev.last_s))
+            has = (count >= self.rule.min_samples) & (last - first >= self.rule.min_span_s)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                deps[:, k] = np.where(has, speed_sum / model_sum - 1.0, np.nan)
+            if seen.size:
+                ev.samples, ev.speed_sum, ev.speed_model_sum = (
+                    int(count[-1]),
+                    float(speed_sum[-1]),
+                    float(model_sum[-1]),
+                )
+                ev.first_s, ev.last_s = first, float(last[-1])
+        with np.errstate(invalid="ignore"):
+            faster = (deps > self.rule.speed_departure).sum(axis=1)
+            slower = (deps < -self.rule.speed_departure).sum(axis=1)
+        evidenced = np.isfinite(deps).sum(axis=1)
+        out = np.full(n, VehicleFit.FITS, dtype=np.int8)
+        out[(faster >= self.needed) | (slower >= self.needed)] = VehicleFit.SPEED_OFF
+        out[evidenced < self.needed] = VehicleFit.CHECKING  # (then neither side can reach it either)
+        return out
+
+    def _verdict(self, evidenced: int, faster: int, slower: int) -> int:
+        if evidenced < self.needed:
+            return VehicleFit.CHECKING
+        return VehicleFit.SPEED_OFF if max(faster, slower) >= self.needed else VehicleFit.FITS
+
+    def departures(self) -> Mapping[int, float]:
+        """Each motor's speed departure so far (NaN where it has not turned)."""
+        return {m: ev.departure() for m, ev in sorted(self.evidence.items())}
+
+    def describe(self, code: int, model_name: str = "the motor model") -> str:
+        """One line saying what the check found (replay's output and report, the agent's log and status)."""
+        if code == VehicleFit.CHECKING:
+            return f"checking that {model_name} describes this vehicle"
+        if code == VehicleFit.FITS:
+            return f"{model_name} describes this vehicle"
+        values = [d for d in self.departures().values() if math.isfinite(d)]
+        median = float(np.median(values)) if values else math.nan
+        how = f"{abs(100 * median):.0f} % {'faster' if median > 0 else 'slower'}"
+        return (
+            f"{model_name} does not describe this vehicle: its motors turn {how} than it predicts (median "
+            f"of {len(values)}), so no fault is named (UNCALIBRATED). Fit a model on a healthy flight of this "
+            "vehicle (replay LOG --calibrate START:END, or fit) and give it with --params"
+        )
+
+
+def apply_vehicle_fit(announced: NDArray[np.integer], verdict: NDArray[np.int8]) -> NDArray[np.int8]:
+    """The announced states after the vehicle check: UNCALIBRATED where the model does not fit, and no
+    fault while the check has too little evidence (NORMAL stands until it passes)."""
+    a = np.asarray(announced, dtype=np.int8).copy()
+    a[verdict == VehicleFit.SPEED_OFF] = MotorState.UNCALIBRATED
+    fault_codes = np.array([s.is_fault for s in MotorState])
+    a[(verdict == VehicleFit.CHECKING) & fault_codes[a.astype(np.int64)]] = MotorState.NORMAL
+    return a
