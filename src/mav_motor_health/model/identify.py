@@ -1,0 +1,517 @@
+"""Identify a vehicle's motors, ESCs and current sensing from its own flight log (every sample).
+
+A bench fit needs steady operating points; a flight log has few. The model's equations, though, hold at
+every instant (see :mod:`.balance`), so identification fits them as balances over the whole flight:
+
+1. **Electrical, with the ESC map** (all motors share one ESC map, each motor its own R and k_e). The ESC
+   turns the command ``c`` (0..1 over the autopilot's PWM range) into the duty
+   ``d = clip((c − c₀)/(1 − c₀), 0, 1)``: ``c₀`` is the ESC's idle offset, and full command is full duty
+   (the end point the autopilot's range sets; a full-scale error would only scale k_e and cannot be told
+   from it). With the ESC reporting its *input* current ``s = g·d·i`` the balance is
+   ``⟨d·(d·V_bus − k_e·ω)⟩ = (R/g)·⟨s⟩``; reporting the *motor* (phase) current ``s = g·i`` it is
+   ``⟨d·V_bus − k_e·ω⟩ = (R/g)·⟨s⟩``. ``⟨·⟩`` are means over short time bins (``bin_s``): they average
+   the ESC's own averaging and the command's pairing out, and every product is formed per sample before
+   averaging, so the balance holds whatever the input does within a bin. For a given ``c₀`` each motor's
+   (k_e, R/g) is a non-negative linear least-squares fit; ``c₀`` minimises the pooled residual (a bounded
+   scalar search). The convention with the smaller residual is taken (both are reported), and a reading
+   that does not follow the load at all (constant, zero, uncorrelated) is "unusable": then R comes from
+   the prior and the current is left to the speed-only path.
+2. **Current scale** ``g``: a current sensor's gain cannot be told from the motor's R by the motor's own
+   data (R/g, g·C_p, g·J explain the same log). Where the log has the battery monitor, the ESCs' summed
+   input current against the battery current gives ``g`` (a regression with an offset for the rest of the
+   vehicle's draw); else ``g = 1`` is assumed and R, C_p, B, T_f and J are stated as "scaled by the
+   current sensor's unknown gain".
+3. **Mechanical, with the inertia**: ``k_t·(d·V − k_e·ω)/R = C_p·ω^k + B·ω + T_f + J·dω/dt`` (the current
+   the electrical balance implies: it needs no current sensor and no derivative, since the low-passed
+   ``J·dω/dt`` is ``J·(ω − ω̄)/τ`` exactly). Linear in (C_p, B, T_f, J) for each k; bounded ≥ 0; B and
+   T_f carry a weak prior toward the prior motor's share of the load (a hover says little about C_p vs B
+   vs T_f; the report says which parameters the data determined). k = 3 unless another k lowers the BIC
+   by :data:`K_BIC_MARGIN` or more.
+4. **Per motor**: each motor's R, k_e and C_p relative to the motors' median (the motor type); a motor
+   that departs from its siblings by more than :data:`SIBLING_DEPARTURE` is reported, not averaged in
+   (the type is the median).
+
+What a flight must contain (docs/model.md): the motors turning over a range of commands (take-off,
+climbs, descents, yaw: the commands must move at a constant battery voltage for c₀ to be told from
+k_e), some seconds of it; the battery monitor for the current scale.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import lsq_linear, minimize_scalar
+
+from ..errors import FitError
+from ..telemetry.table import TelemetryTable
+from .dynamics import first_order_response
+from .params import MotorParams
+
+__all__ = ["CurrentReading", "EscMap", "Identification", "identify"]
+
+FloatArray = NDArray[np.float64]
+
+#: another propeller exponent replaces k = 3 only where it lowers the BIC by this much (Kass & Raftery:
+#: a difference above 10 is "very strong" evidence)
+K_BIC_MARGIN = 10.0
+#: candidate propeller exponents
+K_CANDIDATES = (2.0, 2.5, 3.0, 3.5, 4.0)
+#: a motor whose R, k_e or C_p departs from the motors' median by more than this is reported
+SIBLING_DEPARTURE = 0.15
+#: the lowest command used (below it the ESC's duty is near zero and says nothing)
+MIN_COMMAND = 0.05
+#: the prior's width for B·ω and T_f: this share of the load torque at the flight's median speed
+PRIOR_SHARE = 0.02
+#: time constant of the mechanical balance's low-pass [s]
+MECHANICAL_TAU_S = 0.3
+
+
+@dataclass(frozen=True)
+class EscMap:
+    """The ESC's command → duty map: duty = clip((command − idle_offset)/(1 − idle_offset), 0, 1)."""
+
+    idle_offset: float = 0.0
+
+    def duty(self, command: FloatArray) -> FloatArray:
+        c0 = self.idle_offset
+        return np.clip((np.asarray(command, dtype=float) - c0) / (1.0 - c0), 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class CurrentReading:
+    """How the ESC reports current: ``side`` "input" (battery side, duty × motor current), "motor"
+    (phase), or "unusable"; ``gain`` its scale (reading / true), ``gain_from`` "battery" or "assumed"."""
+
+    side: str = "input"
+    gain: float = 1.0
+    gain_from: str = "assumed"
+    offset_a: float = 0.0
+    residual_v: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Identification:
+    """What identification found, with the evidence for it (see :meth:`report`)."""
+
+    params: MotorParams  # the motor type (median of the motors), with J
+    per_motor: Mapping[int, MotorParams]
+    esc: EscMap
+    current: CurrentReading
+    stderr: Mapping[str, float]
+    determined_by: Mapping[str, str]  # parameter -> "data" or "prior"
+    k_bic: Mapping[float, float]  # candidate k -> BIC of the mechanical fit
+    deviations: Mapping[int, Mapping[str, float]]  # motor -> parameter -> relative departure from the type
+    noise: Mapping[int, Mapping[str, float]]  # motor -> residual std of the balances
+    samples: int
+    span_s: tuple[float, float]
+    findings: tuple[str, ...] = ()
+
+    def report(self) -> str:
+        p = self.params
+        lines = [
+            f"identified from {self.samples} samples, {self.span_s[0]:.1f}-{self.span_s[1]:.1f} s",
+            f"ESC map: idle offset {self.esc.idle_offset:.4f} of the command range (full command = full duty)",
+            f"current reading: {self.current.side} side, gain {self.current.gain:.3f} ({self.current.gain_from})"
+            + (
+                "; residual " + ", ".join(f"{k} {v:.3g} V" for k, v in self.current.residual_v.items())
+                if self.current.residual_v
+                else ""
+            ),
+            "",
+            f"{'parameter':<10}{'value':>14}{'stderr':>12}  determined by",
+        ]
+        for name in ("R_ohm", "k_e", "C_p", "B", "T_f", "J_kg_m2"):
+            value = getattr(p, name)
+            err = self.stderr.get(name, math.nan)
+            lines.append(f"{name:<10}{value:>14.5g}{err:>12.3g}  {self.determined_by.get(name, 'data')}")
+        chosen = p.k
+        lines += ["", "propeller exponent k (BIC of the mechanical balance; lower is better):"]
+        for k, bic in sorted(self.k_bic.items()):
+            mark = "  <- chosen" if k == chosen else ""
+            lines.append(f"  k = {k:g}: {bic:.1f}{mark}")
+        lines.append(f"  (k = 3 unless another lowers the BIC by {K_BIC_MARGIN:g} or more)")
+        lines += ["", "per motor (departure from the motors' median):"]
+        for motor, dev in sorted(self.deviations.items()):
+            noise = self.noise.get(motor, {})
+            lines.append(
+                f"  motor {motor}: "
+                + ", ".join(f"{k} {100 * v:+.1f} %" for k, v in dev.items())
+                + (f"; balance noise {noise.get('voltage_v', math.nan):.3g} V" if noise else "")
+            )
+        lines += [f"finding: {f}" for f in self.findings]
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class _MotorData:
+    motor: int
+    time_s: FloatArray
+    omega: FloatArray
+    command: FloatArray
+    bus_v: FloatArray
+    current: FloatArray  # the ESC's reading (NaN where none)
+    bins: NDArray[np.int64]  # time bin of each sample
+
+
+def _motor_data(table: TelemetryTable, bin_s: float) -> list[_MotorData]:
+    for column in ("throttle", "bus_voltage_v"):
+        if column not in table.names:
+            raise FitError(
+                f"identification needs the motor command and the ESC's bus voltage; the log has no {column!r}"
+            )
+    reading = table.get("esc_current_a")
+    if reading is None:
+        reading = table["current_a"]
+    t0 = float(np.nanmin(table["time_s"]))
+    out = []
+    for motor in table.motors():
+        sel = np.flatnonzero(table["motor"] == motor)
+        sel = sel[np.argsort(table["time_s"][sel], kind="stable")]
+        t, w = table["time_s"][sel], table["omega_rad_s"][sel]
+        c, v, s = table["throttle"][sel], table["bus_voltage_v"][sel], reading[sel]
+        ok = np.isfinite(t) & np.isfinite(w) & np.isfinite(c) & np.isfinite(v) & (c > MIN_COMMAND) & (w > 0)
+        if ok.sum() < 20:
+            continue
+        out.append(
+            _MotorData(
+                motor=int(motor),
+                time_s=t[ok],
+                omega=w[ok],
+                command=np.clip(c[ok], 0.0, 1.0),
+                bus_v=v[ok],
+                current=s[ok],
+                bins=np.floor((t[ok] - t0) / bin_s).astype(np.int64),
+            )
+        )
+    if len(out) == 0:
+        raise FitError("no motor has 20 samples turning under a command with speed and bus voltage")
+    return out
+
+
+def _bin_means(bins: NDArray[np.int64], columns: Mapping[str, FloatArray]) -> dict[str, FloatArray]:
+    _, index, counts = np.unique(bins, return_inverse=True, return_counts=True)
+    return {name: np.bincount(index, weights=values) / counts for name, values in columns.items()}
+
+
+@dataclass(frozen=True)
+class _ElectricalTerms:
+    """Bin means of the products the electrical balance needs, for any idle offset c₀."""
+
+    c: FloatArray
+    c2v: FloatArray
+    cv: FloatArray
+    v: FloatArray
+    cw: FloatArray
+    w: FloatArray
+    s: FloatArray
+
+    @classmethod
+    def of(cls, m: _MotorData) -> _ElectricalTerms:
+        have = np.isfinite(m.current)
+        c, v, w, s = m.command[have], m.bus_v[have], m.omega[have], m.current[have]
+        means = _bin_means(
+            m.bins[have], {"c": c, "c2v": c * c * v, "cv": c * v, "v": v, "cw": c * w, "w": w, "s": s}
+        )
+        return cls(**means)
+
+    def rows(self, c0: float, side: str) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(y, x_ke, x_r, mean duty) with y = k_e·x_ke + (R/g)·x_r for the reading's side."""
+        scale = 1.0 - c0
+        duty = (self.c - c0) / scale
+        dv = (self.cv - c0 * self.v) / scale  # ⟨d·V⟩
+        if side == "input":
+            y = (self.c2v - 2 * c0 * self.cv + c0 * c0 * self.v) / scale**2  # ⟨d²·V⟩
+            x_ke = (self.cw - c0 * self.w) / scale  # ⟨d·ω⟩
+            return y, x_ke, self.s, duty
+        return dv, self.w, self.s, np.ones_like(duty)
+
+
+def _electrical_fit(
+    terms: _ElectricalTerms, c0: float, side: str
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(k_e, R/g) ≥ 0 for one motor, their standard errors, and the residual in volts (per bin, divided
+    by the mean duty)."""
+    y, x_ke, x_r, duty = terms.rows(c0, side)
+    # in volts: each bin's balance divided by its mean duty (bins at near-zero duty say nothing)
+    weight = np.where(duty > 0.02, 1.0 / np.maximum(duty, 0.02), 0.0)
+    y, a = y * weight, np.column_stack([x_ke, x_r]) * weight[:, None]
+    scale = np.maximum(np.abs(a).max(axis=0), 1e-12)
+    sol = lsq_linear(a / scale, y, bounds=(0.0, np.inf), method="bvls")
+    coef = sol.x / scale
+    raw = y - a @ coef
+    resid = np.where(weight > 0, raw, np.nan)
+    dof = max(y.size - 2, 1)
+    try:
+        cov = np.linalg.inv(a.T @ a) * float(np.sum(raw**2)) / dof
+        stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        stderr = np.full(2, np.nan)
+    return coef, stderr, resid
+
+
+def _usable_current(terms: _ElectricalTerms) -> bool:
+    """A reading that follows the load: not constant, not zero, and rising with the speed."""
+    s, w = terms.s, terms.w
+    if s.size < 10 or not np.isfinite(s).all() or np.ptp(s) < 1e-6 or np.mean(np.abs(s)) < 1e-3:
+        return False
+    r = np.corrcoef(s, w * w)[0, 1]
+    return bool(np.isfinite(r) and r > 0.3)
+
+
+def _pooled_electrical(terms: Mapping[int, _ElectricalTerms], side: str) -> tuple[float, float]:
+    """The idle offset c₀ that minimises the pooled residual, and that residual's RMS [V]."""
+
+    def cost(c0: float) -> float:
+        total, n = 0.0, 0
+        for t in terms.values():
+            _, _, resid = _electrical_fit(t, c0, side)
+            good = np.isfinite(resid)
+            total += float(np.sum(resid[good] ** 2))
+            n += int(good.sum())
+        return total / max(n, 1)
+
+    grid = np.linspace(-0.05, 0.3, 36)
+    costs = [cost(c) for c in grid]
+    best = int(np.argmin(costs))
+    lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
+    found = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-5})
+    c0 = float(found.x) if found.fun <= costs[best] else float(grid[best])
+    return c0, math.sqrt(cost(c0))
+
+
+def _battery_gain(
+    data: Sequence[_MotorData], table: TelemetryTable, side: str, esc: EscMap
+) -> tuple[float, float] | None:
+    """(gain, offset A) of the ESCs' summed input current against the battery monitor, or None."""
+    battery = table.get("battery_current_a")
+    if battery is None or not np.isfinite(battery).any():
+        return None
+    t0 = float(np.nanmin(table["time_s"]))
+    bin_s = 1.0
+    per_motor = []
+    for m in data:
+        have = np.isfinite(m.current)
+        if not have.any():
+            return None
+        duty = esc.duty(m.command[have])
+        reading = m.current[have] if side == "input" else m.current[have] * duty
+        bins = np.floor((m.time_s[have] - t0) / bin_s).astype(np.int64)
+        keys, index, counts = np.unique(bins, return_inverse=True, return_counts=True)
+        per_motor.append(dict(zip(keys.tolist(), (np.bincount(index, weights=reading) / counts).tolist())))
+    common = sorted(set.intersection(*(set(d) for d in per_motor)))
+    if len(common) < 10:
+        return None
+    esc_sum = np.array([sum(d[k] for d in per_motor) for k in common])
+    bt = table["time_s"]
+    good = np.isfinite(battery) & np.isfinite(bt)
+    bbins = np.floor((bt[good] - t0) / bin_s).astype(np.int64)
+    keys, index, counts = np.unique(bbins, return_inverse=True, return_counts=True)
+    bmean = dict(zip(keys.tolist(), (np.bincount(index, weights=battery[good]) / counts).tolist()))
+    pairs = [(e, bmean[k]) for e, k in zip(esc_sum, common) if k in bmean]
+    if len(pairs) < 10:
+        return None
+    e, b = np.array(pairs).T
+    if np.ptp(b) < 1.0:  # the battery current must move for gain and offset to part
+        gain = float(np.sum(e) / np.sum(b))
+        return gain, 0.0
+    slope, intercept = np.polyfit(b, e, 1)
+    return float(slope), float(-intercept / slope) if slope > 0 else 0.0
+
+
+def _lowpass(time_s: FloatArray, values: FloatArray, tau_s: float) -> FloatArray:
+    return first_order_response(time_s, values, tau_s)[0]
+
+
+def _mechanical_rows(
+    m: _MotorData, esc: EscMap, k_e: float, r_ohm: float, k: float, tau_s: float
+) -> tuple[FloatArray, FloatArray]:
+    """Design matrix [ω̄^k, ω̄, 1, (ω − ω̄)/τ] and target k_t·mean(d·V − k_e·ω)/R, low-passed."""
+    t = m.time_s
+    torque = k_e * (esc.duty(m.command) * m.bus_v - k_e * m.omega) / r_ohm
+    y = _lowpass(t, torque, tau_s)
+    w_bar = _lowpass(t, m.omega, tau_s)
+    a = np.column_stack([_lowpass(t, m.omega**k, tau_s), w_bar, np.ones_like(t), (m.omega - w_bar) / tau_s])
+    settle = t - t[0] > 3 * tau_s
+    return a[settle], y[settle]
+
+
+def _mechanical_fit(
+    rows: Sequence[tuple[FloatArray, FloatArray]], prior: FloatArray, prior_sd: FloatArray
+) -> tuple[FloatArray, FloatArray, float, int]:
+    """(C_p, B, T_f, J) ≥ 0 with a Gaussian prior, their standard errors, the data's SSE and count."""
+    a = np.vstack([r[0] for r in rows])
+    y = np.concatenate([r[1] for r in rows])
+    # noise scale from an unregularised fit, to weigh the prior against the data
+    col = np.maximum(np.abs(a).max(axis=0), 1e-30)
+    first = lsq_linear(a / col, y, bounds=(0.0, np.inf), method="bvls")
+    sigma = max(float(np.std(y - (a / col) @ first.x)), 1e-12)
+    weak = np.isfinite(prior_sd)
+    a_aug = np.vstack([a / sigma, np.diag(1.0 / np.where(weak, prior_sd, 1.0))[weak]])
+    y_aug = np.concatenate([y / sigma, (prior / np.where(weak, prior_sd, 1.0))[weak]])
+    col_aug = np.maximum(np.abs(a_aug).max(axis=0), 1e-30)
+    sol = lsq_linear(a_aug / col_aug, y_aug, bounds=(0.0, np.inf), method="bvls")
+    x = sol.x / col_aug
+    sse = float(np.sum((y - a @ x) ** 2))
+    info = a_aug.T @ a_aug
+    try:
+        cov = np.linalg.inv(info)
+        stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        stderr = np.full(4, np.nan)
+    return x, stderr, sse, y.size
+
+
+def identify(
+    table: TelemetryTable,
+    prior: MotorParams,
+    *,
+    bin_s: float = 0.25,
+    k: float | None = None,
+    name: str = "identified motor",
+) -> Identification:
+    """Identify the vehicle in ``table`` (a healthy flight); ``prior`` fills what the data cannot say."""
+    data = _motor_data(table, bin_s)
+    terms = {m.motor: _ElectricalTerms.of(m) for m in data}
+    usable = {motor: _usable_current(t) for motor, t in terms.items()}
+    findings: list[str] = []
+    if sum(usable.values()) >= max(1, len(usable) // 2 + 1):
+        with_current = {mo: t for mo, t in terms.items() if usable[mo]}
+        fits = {side: _pooled_electrical(with_current, side) for side in ("input", "motor")}
+        side = min(fits, key=lambda s: fits[s][1])
+        c0, _ = fits[side]
+        residual_v = {s: fits[s][1] for s in fits}
+    else:
+        side, residual_v = "unusable", {}
+        c0 = _speed_only_offset(data, prior)
+        findings.append("the ESCs report no usable current: R is the prior's, the current is not judged")
+    esc = EscMap(idle_offset=c0)
+    per_motor_e: dict[int, tuple[float, float]] = {}
+    per_motor_err: dict[int, tuple[float, float]] = {}
+    for m in data:
+        if side != "unusable" and usable.get(m.motor):
+            coef, err_e, _ = _electrical_fit(terms[m.motor], c0, side)
+            per_motor_e[m.motor] = (float(coef[0]), float(coef[1]))
+            per_motor_err[m.motor] = (float(err_e[0]), float(err_e[1]))
+        else:
+            per_motor_e[m.motor] = (_speed_only_ke(m, esc, prior), math.nan)
+            per_motor_err[m.motor] = (math.nan, math.nan)
+    gain_fit = _battery_gain(data, table, side, esc) if side != "unusable" else None
+    gain, offset, gain_from = (1.0, 0.0, "assumed") if gain_fit is None else (*gain_fit, "battery")
+    k_e_type = float(np.median([v[0] for v in per_motor_e.values()]))
+    r_values = [v[1] * gain for v in per_motor_e.values() if math.isfinite(v[1])]
+    r_type = float(np.median(r_values)) if r_values else prior.R_ohm
+    # mechanical: each candidate k over all motors with their own electrical constants
+    motors_r = {mo: (v[1] * gain if math.isfinite(v[1]) else r_type) for mo, v in per_motor_e.items()}
+    w_typ = float(np.median(np.concatenate([m.omega for m in data])))
+    load = prior.C_p * w_typ**prior.k + prior.B * w_typ + prior.T_f
+    candidates = (k,) if k is not None else K_CANDIDATES
+    results = {}
+    for kk in candidates:
+        rows = [
+            _mechanical_rows(m, esc, per_motor_e[m.motor][0], motors_r[m.motor], kk, MECHANICAL_TAU_S)
+            for m in data
+        ]
+        # B·ω and T_f are small shares of a propeller's load: a weak prior of 0 ± PRIOR_SHARE of it
+        prior_x = np.zeros(4)
+        prior_sd = np.array([np.inf, PRIOR_SHARE * load / w_typ, PRIOR_SHARE * load, np.inf])
+        x, err, sse, n = _mechanical_fit(rows, prior_x, prior_sd)
+        bic = n * math.log(max(sse / n, 1e-300)) + 4 * math.log(n)
+        results[kk] = (x, err, bic)
+    k_bic = {kk: r[2] for kk, r in results.items()}
+    chosen = k if k is not None else 3.0
+    if k is None:
+        best = min(k_bic, key=lambda kk: k_bic[kk])
+        if k_bic[3.0] - k_bic[best] >= K_BIC_MARGIN:
+            chosen = best
+    x, err, _ = results[chosen]
+    c_p, b, t_f, inertia = (float(v) for v in x)
+    determined = {
+        "R_ohm": "data"
+        if r_values and gain_from == "battery"
+        else ("prior" if not r_values else "data (x current gain)"),
+        "k_e": "data",
+        "C_p": "data",
+        "B": "data" if err[1] < 0.5 * PRIOR_SHARE * load / w_typ else "prior",
+        "T_f": "data" if err[2] < 0.5 * PRIOR_SHARE * load else "prior",
+        "J_kg_m2": "data" if inertia > 0 and err[3] < 0.5 * inertia else "prior",
+    }
+    if inertia <= 0:
+        inertia = prior.J_kg_m2 or 0.0
+    params = MotorParams(
+        R_ohm=r_type, k_e=k_e_type, C_p=c_p, B=b, T_f=t_f, k=chosen, name=name, J_kg_m2=inertia or None
+    )
+    per_motor = {}
+    deviations = {}
+    for mo, (ke, rr) in per_motor_e.items():
+        r_m = rr * gain if math.isfinite(rr) else r_type
+        per_motor[mo] = params.replace(R_ohm=r_m, k_e=ke, name=f"{name}, motor {mo}")
+        deviations[mo] = {"k_e": ke / k_e_type - 1.0, "R_ohm": r_m / r_type - 1.0}
+        # a departure counts where it is large and the motor's own fit is sure of it (3 standard errors)
+        rel_err = {
+            "k_e": per_motor_err[mo][0] / ke,
+            "R_ohm": per_motor_err[mo][1] / rr if rr > 0 else math.inf,
+        }
+        off = [
+            key
+            for key, v in deviations[mo].items()
+            if abs(v) > SIBLING_DEPARTURE and abs(v) > 3 * rel_err[key]
+        ]
+        if off:
+            findings.append(f"motor {mo} departs from its siblings in {', '.join(off)}")
+    t_all = np.concatenate([m.time_s for m in data])
+    return Identification(
+        params=params,
+        per_motor=per_motor,
+        esc=esc,
+        current=CurrentReading(
+            side=side, gain=gain, gain_from=gain_from, offset_a=offset, residual_v=residual_v
+        ),
+        stderr={
+            "R_ohm": _median_stderr([v[1] * gain for v in per_motor_e.values() if math.isfinite(v[1])]),
+            "k_e": _median_stderr([v[0] for v in per_motor_e.values()]),
+            "C_p": float(err[0]),
+            "B": float(err[1]),
+            "T_f": float(err[2]),
+            "J_kg_m2": float(err[3]),
+        },
+        determined_by=determined,
+        k_bic=k_bic,
+        deviations=deviations,
+        noise={},
+        samples=int(sum(m.time_s.size for m in data)),
+        span_s=(float(t_all.min()), float(t_all.max())),
+        findings=tuple(findings),
+    )
+
+
+def _median_stderr(values: Sequence[float]) -> float:
+    """Standard error of the motors' median (1.25·σ/√n; NaN for fewer than two motors)."""
+    if len(values) < 2:
+        return math.nan
+    return float(1.2533 * np.std(values, ddof=1) / math.sqrt(len(values)))
+
+
+def _speed_only_ke(m: _MotorData, esc: EscMap, prior: MotorParams) -> float:
+    """k_e from speed alone: d·V = k_e·ω + R·i with the current the prior's load needs at ω."""
+    from .equations import current_from_speed
+
+    dv = esc.duty(m.command) * m.bus_v
+    ri = prior.R_ohm * current_from_speed(prior, m.omega)
+    return float(np.sum((dv - ri) * m.omega) / np.sum(m.omega**2))
+
+
+def _speed_only_offset(data: Sequence[_MotorData], prior: MotorParams) -> float:
+    def cost(c0: float) -> float:
+        esc = EscMap(c0)
+        total = 0.0
+        for m in data:
+            ke = _speed_only_ke(m, esc, prior)
+            total += float(np.mean((esc.duty(m.command) * m.bus_v - ke * m.omega) ** 2))
+        return total
+
+    found = minimize_scalar(cost, bounds=(-0.05, 0.3), method="bounded")
+    return float(found.x)

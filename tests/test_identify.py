@@ -1,0 +1,76 @@
+"""Identification of a vehicle from its own flight log (model/identify.py)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mav_motor_health.config import load_motor_params
+from mav_motor_health.errors import FitError
+from mav_motor_health.model.identify import K_BIC_MARGIN, identify
+from mav_motor_health.telemetry import sources
+from mav_motor_health.telemetry.table import TelemetryTable
+
+SITL_LOGS = Path(__file__).resolve().parents[1] / "sitl_logs"
+
+
+@pytest.fixture(scope="module")
+def paper_flight() -> TelemetryTable:
+    return sources.read(SITL_LOGS / "flight_healthy_calm.csv")
+
+
+def test_a_simulated_hexacopter_is_identified_from_one_minute_of_flight(paper_flight) -> None:
+    truth = load_motor_params()  # the simulator flies the paper's motor with J = 2e-5
+    result = identify(paper_flight, truth.replace(C_p=1e-9, B=0.0, T_f=0.0, J_kg_m2=None))
+    p = result.params
+    assert abs(p.k_e / truth.k_e - 1) < 0.07
+    assert abs(p.J_kg_m2 / truth.J_kg_m2 - 1) < 0.3
+    assert p.k == 3 and all(v >= 0 for v in (p.R_ohm, p.C_p, p.B, p.T_f, p.J_kg_m2))
+    assert result.current.side == "input"  # the simulated ESCs report duty × motor current
+    assert set(result.per_motor) == set(range(1, 7))
+    assert all(abs(d["k_e"]) < 0.02 for d in result.deviations.values())  # six motors of one type
+    assert not result.findings
+    text = result.report()
+    assert "k = 3: " in text and "<- chosen" in text and "determined by" in text
+
+
+def test_a_motor_unlike_its_siblings_is_a_finding_not_averaged_in(paper_flight) -> None:
+    cols = dict(paper_flight.columns)
+    four = cols["motor"] == 4
+    cols["omega_rad_s"] = np.where(four, cols["omega_rad_s"] / 1.3, cols["omega_rad_s"])  # k_e 30 % larger
+    result = identify(TelemetryTable(cols, source="altered"), load_motor_params())
+    assert result.deviations[4]["k_e"] > 0.2
+    assert any("motor 4" in f and "k_e" in f for f in result.findings)
+    others = [result.per_motor[m].k_e for m in (1, 2, 3, 5, 6)]
+    assert abs(result.params.k_e / np.median(others) - 1) < 0.01  # the type is the siblings'
+
+
+def test_a_log_without_command_or_bus_voltage_is_refused_with_the_reason(paper_flight) -> None:
+    cols = {k: v for k, v in paper_flight.columns.items() if k != "throttle"}
+    with pytest.raises(FitError, match="throttle"):
+        identify(TelemetryTable(cols), load_motor_params())
+
+
+def test_a_current_that_does_not_follow_the_load_is_found_unusable(paper_flight) -> None:
+    cols = dict(paper_flight.columns)
+    cols["esc_current_a"] = np.full(len(paper_flight), 0.8)  # stock SITL: a constant
+    result = identify(TelemetryTable(cols), load_motor_params())
+    assert result.current.side == "unusable"
+    assert result.determined_by["R_ohm"] == "prior"
+    assert any("no usable current" in f for f in result.findings)
+
+
+def test_the_real_px4_log_current_scale_is_read_off_the_battery_monitor(real_logs) -> None:
+    # MANIFEST: the four ESC currents sum to about half the battery monitor's current
+    table = sources.read(real_logs / "px4" / "esc_status_log.ulg")
+    result = identify(table, load_motor_params())
+    assert result.current.gain_from == "battery"
+    assert 0.35 < result.current.gain < 0.75
+    kv = 60.0 / (2 * math.pi * result.params.k_e)
+    assert 120 < kv < 400  # a large 6S quad turning ~230 rad/s at ~12 V: a low-KV motor
+    assert all(math.isfinite(v) for v in result.k_bic.values())
+    best = min(result.k_bic, key=result.k_bic.get)
+    assert result.params.k == (best if result.k_bic[3.0] - result.k_bic[best] >= K_BIC_MARGIN else 3.0)
