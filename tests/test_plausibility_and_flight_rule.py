@@ -199,7 +199,7 @@ def test_streaming_equals_batch_in_flight_mode(paper_motor) -> None:
     table = sitl_like_flight(params, slow_motor=2).select(np.arange(2400) % 3 == 0)
     profile = ThresholdProfile(name="t", steady=SteadyRule(kind="dynamic"))
     batch = diagnose(table, params, profile)
-    stream = StreamingDiagnoser(params, profile)
+    stream = StreamingDiagnoser(params, profile, batch.motors())  # the vehicle's motors: the vehicle check
     order = np.argsort(batch["time_s"], kind="stable")
     rows = {}
     for j in order:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -128,3 +130,56 @@ def test_the_message_says_how_far_off_and_what_to_do() -> None:
 def test_bad_settings_name_the_key(key: str, value: float) -> None:
     with pytest.raises(ConfigError, match=f"vehicle_check.{key}"):
         VehicleCheckRule(**{key: value})
+
+
+@pytest.mark.parametrize(
+    ("log", "slower"),
+    [("px4/esc_status_log.ulg", "75 % slower"), ("ardupilot_sitl/hexa_motor1_half.tlog", "17 % slower")],
+)
+def test_a_real_log_replayed_with_the_bundled_motor_names_no_fault_and_says_why(
+    real_logs, tmp_path, log: str, slower: str
+) -> None:
+    from mav_motor_health.config import load_motor_params, load_profile
+    from mav_motor_health.replay import replay_log
+
+    with pytest.warns(UserWarning, match="does not describe this vehicle"):
+        result = replay_log(real_logs / log, tmp_path / "out", load_motor_params(), load_profile("flight"))
+    assert not any(v.is_fault for v in result.verdicts)
+    assert {v.state for v in result.verdicts} == {"UNCALIBRATED"}
+    assert result.summary_row()["verdict"] == "UNCALIBRATED"
+    (line,) = [w for w in result.warnings if "does not describe" in w]
+    assert slower in line and "--params" in line
+    assert "does not describe this vehicle" in (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
+    lines = (tmp_path / "out" / "events.jsonl").read_text(encoding="utf-8").splitlines()
+    assert {json.loads(line)["state"] for line in lines} == {"UNCALIBRATED"}
+
+
+def test_the_agent_and_replay_hold_faults_back_alike_while_the_check_gathers_evidence() -> None:
+    from mav_motor_health.diagnosis.pipeline import StreamingDiagnoser
+
+    rows = _flight({m: 0.5 for m in range(1, 7)})
+    announced = np.full(rows[0].size, MotorState.F1_1, dtype=np.int8)
+    whole = StreamingDiagnoser.vehicle_check_for(_flight_profile(), range(1, 7)).update(*rows)
+    live = StreamingDiagnoser(_paper(), _flight_profile(), range(1, 7))
+    verdicts, states = zip(
+        *(
+            live.judge_vehicle(*(c[k : k + 1] for c in rows), announced[k : k + 1])
+            for k in range(rows[0].size)
+        )
+    )
+    assert np.array_equal(np.concatenate(verdicts), whole)
+    states_arr = np.concatenate(states)
+    assert set(states_arr[whole == VehicleFit.CHECKING].tolist()) == {MotorState.NORMAL}
+    assert set(states_arr[whole == VehicleFit.SPEED_OFF].tolist()) == {MotorState.UNCALIBRATED}
+
+
+def _paper():
+    from mav_motor_health.config import load_motor_params
+
+    return load_motor_params()
+
+
+def _flight_profile():
+    from mav_motor_health.config import load_profile
+
+    return load_profile("flight")

@@ -15,6 +15,7 @@ from typing import Any
 
 from .diagnosis.plausibility import PlausibilityRule
 from .diagnosis.profile import PersistenceRule, SteadyRule, ThresholdProfile
+from .diagnosis.vehicle_check import VehicleCheckRule
 from .errors import ConfigError
 from .model.params import MotorParams
 
@@ -232,6 +233,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
     steady = top.table("steady")
     pers = top.table("persistence")
     plaus = top.table("plausibility")
+    vehicle = top.table("vehicle_check")
     top.raw("source")
     top.done()
     band = _number_rows(
@@ -291,6 +293,12 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
                     if name in plaus.data
                 }
             ),
+            vehicle_check=VehicleCheckRule(
+                speed_departure=vehicle.number("speed_departure", 0.10, minimum=0.0, maximum=1.0),
+                min_samples=int(vehicle.number("min_samples", 5, minimum=1)),
+                min_span_s=vehicle.number("min_span_s", 2.0, minimum=0.0, unit="s"),
+                min_motors=int(vehicle.number("min_motors", 3, minimum=2)),
+            ),
             persistence=PersistenceRule(
                 default_announce_s=pers.number("default_announce_s", 0.1, minimum=0.0, unit="s"),
                 clear_s=pers.number("clear_s", 0.5, minimum=0.0, unit="s"),
@@ -304,13 +312,14 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
         if exc.path is not None:
             raise
         key = exc.key
-        if key and key.split(".")[0] not in ("steady", "persistence", "plausibility"):
+        if key and key.split(".")[0] not in ("steady", "persistence", "plausibility", "vehicle_check"):
             key = f"profile.{key}"
         raise ConfigError(exc.reason, path=path, key=key, expected=exc.expected) from None
     p.done()
     steady.done()
     pers.done()
     plaus.done()
+    vehicle.done()
     return profile
 
 
@@ -370,6 +379,15 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
             f"{_toml_string(label)} = {float(value)!r}"
             for label, value in profile.persistence.announce_per_activity_s
         ]
+    check = profile.vehicle_check
+    lines += [
+        "",
+        "[vehicle_check]",
+        f"speed_departure = {check.speed_departure!r}",
+        f"min_samples = {check.min_samples!r}",
+        f"min_span_s = {check.min_span_s!r}",
+        f"min_motors = {check.min_motors!r}",
+    ]
     lines += ["", "[plausibility]"]
     lines += [f"{name} = {value!r}" for name, value in profile.plausibility.__dict__.items()]
     if source:

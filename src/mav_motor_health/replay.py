@@ -32,6 +32,7 @@ import numpy as np
 from .diagnosis.pipeline import DIAGNOSIS_COLUMNS, diagnose
 from .diagnosis.profile import ThresholdProfile
 from .diagnosis.states import MotorState
+from .diagnosis.vehicle_check import VehicleFit, describe_vehicle_fit
 from .errors import DataError, MotorHealthError
 from .model.params import MotorParams
 from .telemetry.table import TelemetryTable
@@ -97,6 +98,7 @@ class ReplayResult:
     def summary_row(self) -> dict[str, Any]:
         faults = [v for v in self.verdicts if v.is_fault]
         nodata = [v for v in self.verdicts if v.state == "NO_DATA"]
+        uncalibrated = any(v.state == "UNCALIBRATED" for v in self.verdicts)
         return {
             "log": self.log,
             "out_dir": self.out_dir,
@@ -106,7 +108,11 @@ class ReplayResult:
             "motors": len(self.verdicts),
             "verdict": "ERROR"
             if self.error
-            else ("FAULT" if faults else ("NO_DATA" if nodata else "NORMAL")),
+            else (
+                "FAULT"
+                if faults
+                else ("UNCALIBRATED" if uncalibrated else ("NO_DATA" if nodata else "NORMAL"))
+            ),
             "faults": "; ".join(f"motor {v.motor} {v.state} from {v.first_fault_s:.1f} s" for v in faults),
             "no_data_motors": " ".join(str(v.motor) for v in nodata),
             "events": len(self.events),
@@ -255,6 +261,14 @@ def motor_verdicts(result: TelemetryTable, expected: Sequence[int] = ()) -> list
             fault_time = float(durations[main])
             state = main.label
             reason = f"{main.description} announced from {first:.1f} s, {fault_time:.1f} s in total"
+        elif durations[MotorState.UNCALIBRATED] > 0:
+            since = float(t[np.argmax(announced == MotorState.UNCALIBRATED)])
+            state, reason, first, fault_time = (
+                "UNCALIBRATED",
+                f"the motor model does not describe this vehicle (from {since:.1f} s): no fault can be named",
+                None,
+                0.0,
+            )
         else:
             state, reason, first, fault_time = "NORMAL", "no fault announced", None, 0.0
         verdicts.append(MotorVerdict(motor, state, reason, first, fault_time, final, n, steady, no_data))
@@ -312,6 +326,15 @@ def pairing_note(meta: Mapping[str, Any], profile: ThresholdProfile) -> str | No
     )
 
 
+def vehicle_note(meta: Mapping[str, Any], params: MotorParams | dict[int, MotorParams]) -> str | None:
+    """The vehicle check's line where the motor model does not describe the logged vehicle."""
+    check = meta.get("vehicle_check")
+    if not check or check["verdict"] != VehicleFit.SPEED_OFF:
+        return None
+    model = params if isinstance(params, MotorParams) else params[min(params)]
+    return describe_vehicle_fit(check["verdict"], check["departures"], f"the motor model {model.name!r}")
+
+
 def replay_log(
     log: str | Path,
     out_dir: str | Path,
@@ -367,6 +390,12 @@ def replay_log(
             warnings.warn(f"{log}: {pairing}", UserWarning, stacklevel=2)
     bar.update(1, 4, f"diagnosing {len(table.motors())} motors")
     result = diagnose(table, params, profile)  # the same core the live agent runs
+    unfit = vehicle_note(result.meta, params)
+    if unfit is not None:
+        warned += (unfit,)
+        notes += (unfit,)
+        if reissue_warnings:
+            warnings.warn(f"{log}: {unfit}", UserWarning, stacklevel=2)
     expected = [int(m) for m in table.meta.get("motors", [])]
     verdicts = motor_verdicts(result, expected)
     events = events_from_diagnosis(result)

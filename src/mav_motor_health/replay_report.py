@@ -40,6 +40,7 @@ STATE_COLOURS = {
     MotorState.SLOW: "#ad1457",
     MotorState.STALLED: "#b71c1c",
     MotorState.FAST: "#ff8f00",
+    MotorState.UNCALIBRATED: "#00838f",
 }
 WIDTH = 900
 LEFT = 64

@@ -43,6 +43,12 @@ def all_normal(listener: MqttListener) -> bool:
     return len(states) == 6 and set(states.values()) == {"NORMAL"}
 
 
+def model_checked(listener: MqttListener) -> bool:
+    """The agent has checked the motor model against the vehicle (no fault is announced before)."""
+    infos = listener.on("/info")
+    return bool(infos) and infos[-1][1].get("model_check", {}).get("verdict") == "fits"
+
+
 def test_fault_is_announced_over_mavlink_and_mqtt_within_a_second(paper_motor, broker, mavproxy):
     listener = MqttListener(broker.port, f"mmh/{VEHICLE}/#")
 
@@ -61,6 +67,9 @@ def test_fault_is_announced_over_mavlink_and_mqtt_within_a_second(paper_motor, b
                 beats = peer.messages("HEARTBEAT")
                 assert beats and all(m.type == 18 and m.get_srcComponent() == 191 for _, m in beats)
 
+                await until(
+                    lambda: model_checked(listener), 30, "the motor model checked against the vehicle"
+                )
                 onset = peer.inject(4, "F3.1")
                 mqtt_at = await until(
                     lambda: next(

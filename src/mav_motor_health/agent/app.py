@@ -29,6 +29,7 @@ from typing import Any, TextIO
 from .. import __version__
 from .._aio import TaskGroup
 from ..diagnosis.states import MotorState
+from ..diagnosis.vehicle_check import VehicleFit
 from ..publish import dialect as health_dialect
 from ..publish.mavlink_health import (
     MAV_SEVERITY_WARNING,
@@ -94,6 +95,7 @@ class Agent:
         self._telemetry_sent: dict[int, float] = {}
         self._esc_lost_told = False
         self._pending: list[MotorSample] = []
+        self._vehicle_fit_told = self.monitor.vehicle_fit
 
     # -- lifetime ------------------------------------------------------------------------------------
     async def __aenter__(self) -> Agent:
@@ -197,6 +199,24 @@ class Agent:
                 self.on_row(row)
         for change in changes:
             self._changed(change)
+        if self.monitor.vehicle_fit != self._vehicle_fit_told:
+            self._vehicle_fit_told = self.monitor.vehicle_fit
+            self._vehicle_fit_changed()
+
+    def _vehicle_fit_description(self) -> str:
+        check = self.monitor.diagnoser.vehicle
+        return check.describe(self.monitor.vehicle_fit, f"the motor model {self.config.params_name!r}")
+
+    def _vehicle_fit_changed(self) -> None:
+        """Say once, in one line, whether the motor model describes this vehicle (vehicle_check.py)."""
+        if self.monitor.vehicle_fit == VehicleFit.SPEED_OFF:
+            log.warning("%s", self._vehicle_fit_description())
+            if self.config.publish.statustext and not self.tlog:
+                self._send_text("Motor model does not fit this vehicle: fit one", MAV_SEVERITY_WARNING)
+        else:
+            log.info("%s", self._vehicle_fit_description())
+        if self.mqtt is not None:
+            self.mqtt.info(self._info())
 
     def _on_vehicle_event(self, event: str, t: float) -> None:
         tr = self.tracker
@@ -253,6 +273,9 @@ class Agent:
                 for s in had_data:
                     self.gate.mark_sent(s.motor, MotorState.NO_DATA)
                 return
+        if change.state == MotorState.UNCALIBRATED:
+            self.gate.mark_sent(change.motor, change.state)  # one line for the vehicle says it
+            return
         if change.state != MotorState.NO_DATA:
             self._esc_lost_told = False
         first_data = change.previous == MotorState.NO_DATA and change.motor not in self.gate.last_sent
@@ -287,6 +310,12 @@ class Agent:
             "autopilot": self.tracker.autopilot if self.tracker.autopilot in ("ardupilot", "px4") else None,
             "profile": self.config.profile.name,
             "params": self.config.params_name,
+            "model_check": {
+                "verdict": {VehicleFit.FITS: "fits", VehicleFit.CHECKING: "checking"}.get(
+                    self.monitor.vehicle_fit, "does_not_fit"
+                ),
+                "message": self._vehicle_fit_description(),
+            },
         }
 
     # -- periodic work -------------------------------------------------------------------------------

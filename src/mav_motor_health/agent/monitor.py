@@ -15,11 +15,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..diagnosis.pipeline import StreamingDiagnoser
 from ..diagnosis.plausibility import CurrentSumCheck, SensorIssue
 from ..diagnosis.profile import ThresholdProfile
 from ..diagnosis.states import MotorState
+from ..diagnosis.vehicle_check import VehicleFit
 from ..model.params import MotorParams
 from .samples import MotorSample
 
@@ -62,12 +64,14 @@ class HealthMonitor:
         motors: int = 6,
         stale_s: float = 1.0,
     ) -> None:
-        self.diagnoser = StreamingDiagnoser(params, profile)
+        self.diagnoser = StreamingDiagnoser(params, profile, range(1, motors + 1))
         # the ESC currents' sum against the battery monitor, across motors, as replay checks it
         self.current_sum = CurrentSumCheck(profile.plausibility, range(1, motors + 1))
         self.stale_s = stale_s
         self.status = {n: MotorStatus(n) for n in range(1, motors + 1)}
         self.samples = 0
+        #: the vehicle check's latest verdict (diagnosis.vehicle_check.VehicleFit)
+        self.vehicle_fit = VehicleFit.CHECKING if self.diagnoser.vehicle.applies else VehicleFit.FITS
 
     def feed(self, sample: MotorSample) -> tuple[dict[str, Any], StateChange | None]:
         """Diagnose one sample; returns its result row and the state change it caused, if any."""
@@ -91,10 +95,8 @@ class HealthMonitor:
         for sample, bad in zip(samples, mismatch.tolist()):
             by_motor.setdefault(sample.motor, []).append(sample)
             sum_flags.setdefault(sample.motor, []).append(int(SensorIssue.CURRENT_SUM) if bad else 0)
-        rows: list[dict[str, Any]] = []
-        changes: list[StateChange] = []
+        results: dict[int, dict[str, NDArray]] = {}
         for motor, group in by_motor.items():
-            status = self.status[motor]
             arrays = {
                 name: np.array([getattr(s, name) for s in group], dtype=float)
                 for name in (
@@ -108,7 +110,7 @@ class HealthMonitor:
                     "esc_temp_c",
                 )
             }
-            cols = self.diagnoser.update_many(
+            results[motor] = self.diagnoser.update_many(
                 motor,
                 arrays["time_s"],
                 arrays["voltage_v"],
@@ -120,6 +122,31 @@ class HealthMonitor:
                 extra_flags=np.array(sum_flags[motor], dtype=np.int16),
                 context=arrays,  # what a model with fitted effects may read (temperatures, throttle...)
             )
+        # the vehicle check across motors, in arrival order, as replay runs it over the whole log
+        position = {motor: 0 for motor in by_motor}
+        index = []
+        for sample in samples:
+            index.append(position[sample.motor])
+            position[sample.motor] += 1
+        verdict, announced = self.diagnoser.judge_vehicle(
+            np.array([s.time_s for s in samples]),
+            np.array([s.motor for s in samples]),
+            np.array([s.omega_rad_s for s in samples], dtype=float),
+            np.array([results[s.motor]["omega_model_rad_s"][k] for s, k in zip(samples, index)]),
+            np.array([results[s.motor]["announced"][k] for s, k in zip(samples, index)]),
+        )
+        for (sample, k), fit, state in zip(zip(samples, index), verdict.tolist(), announced.tolist()):
+            results[sample.motor]["announced"][k] = state
+            results[sample.motor].setdefault("vehicle_fit", np.zeros(position[sample.motor], dtype=np.int8))[
+                k
+            ] = fit
+        if verdict.size:
+            self.vehicle_fit = int(verdict[-1])
+        rows: list[dict[str, Any]] = []
+        changes: list[StateChange] = []
+        for motor, group in by_motor.items():
+            status = self.status[motor]
+            cols = results[motor]
             for k, sample in enumerate(group):
                 row: dict[str, Any] = {
                     "time_s": sample.time_s,

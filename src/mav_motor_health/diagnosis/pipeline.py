@@ -7,7 +7,7 @@ the live agent calls it with each new sample and the carry from the previous cal
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,6 +33,7 @@ from .stall import StallCarry, stall_mean
 from .states import MotorState
 from .steady import SteadyCarry, steady_mask, warm_mask
 from .tree import agreeing_departures, classify_depth
+from .vehicle_check import VehicleCheck, VehicleFit, apply_vehicle_fit
 
 __all__ = ["DIAGNOSIS_COLUMNS", "MotorCarry", "StreamingDiagnoser", "diagnose", "diagnose_motor"]
 
@@ -452,6 +453,22 @@ def diagnose(
             out["announced"][unmeasured] = np.where(
                 before >= 0, out["announced"][sel[np.maximum(before, 0)]], MotorState.NORMAL
             )
+    # Before any fault is announced: does the model describe this vehicle at all? Rows in the order the
+    # live agent receives them (time, then motor number within one message).
+    check = StreamingDiagnoser.vehicle_check_for(profile, vehicle_motors(table))
+    order = np.lexsort((motors, ordered["time_s"]))
+    vehicle_fit = np.zeros(n, dtype=np.int8)
+    vehicle_fit[order] = check.update(
+        ordered["time_s"][order], motors[order], omega_all[order], out["omega_model_rad_s"][order]
+    )
+    out["announced"] = apply_vehicle_fit(out["announced"], vehicle_fit)
+    final = int(vehicle_fit[order[-1]]) if n else VehicleFit.FITS
+    meta = dict(table.meta)
+    meta["vehicle_check"] = {
+        "verdict": final,
+        "applies": check.applies,
+        "departures": {int(m): float(d) for m, d in check.departures().items()},
+    }
     result = {name: ordered[name] for name in ("time_s", "motor")}
     result.update(
         state=out["state"],
@@ -474,19 +491,55 @@ def diagnose(
         current_slow_judged_a=out["current_slow_judged_a"],
         slow_ready=out["slow_ready"],
         pairing_error_rad_s=out["pairing_error_rad_s"],
+        vehicle_fit=vehicle_fit,
     )
     for name in ordered.names:
         result.setdefault(name, ordered[name])
-    return TelemetryTable(result, source=table.source, meta=table.meta)
+    return TelemetryTable(result, source=table.source, meta=meta)
+
+
+def vehicle_motors(table: TelemetryTable) -> list[int]:
+    """The vehicle's motor numbers: its frame where the log says, else the motors in the table; none for a
+    bench file whose "motors" are different motor/propeller pairs (a dict in its meta)."""
+    named = table.meta.get("motors")
+    if isinstance(named, Mapping):
+        return []
+    if named:
+        return [int(m) for m in named]
+    return [int(m) for m in table.motors()]
 
 
 class StreamingDiagnoser:
     """Sample-by-sample diagnosis for the live agent: the same :func:`diagnose_motor`, carried per motor."""
 
-    def __init__(self, params: MotorParams | dict[int, MotorParams], profile: ThresholdProfile) -> None:
+    def __init__(
+        self,
+        params: MotorParams | dict[int, MotorParams],
+        profile: ThresholdProfile,
+        motors: Sequence[int] = (),
+    ) -> None:
         self.params = params
         self.profile = profile
         self.carries: dict[int, MotorCarry] = {}
+        self.vehicle = self.vehicle_check_for(profile, motors)
+
+    @staticmethod
+    def vehicle_check_for(profile: ThresholdProfile, motors: Sequence[int]) -> VehicleCheck:
+        """The vehicle check of ``motors`` (the vehicle's frame; none: the check does not apply)."""
+        return VehicleCheck(profile.vehicle_check, list(motors), profile.stop_speed_rad_s)
+
+    def judge_vehicle(
+        self,
+        time_s: NDArray[np.float64],
+        motor: NDArray[np.integer],
+        omega_rad_s: NDArray[np.float64],
+        omega_model_rad_s: NDArray[np.float64],
+        announced: NDArray[np.integer],
+    ) -> tuple[NDArray[np.int8], NDArray[np.int8]]:
+        """Rows of any motors in arrival order (time, then motor): the vehicle check's verdict at each and
+        the announced states under it (as :func:`diagnose` does for a whole log)."""
+        verdict = self.vehicle.update(time_s, motor, omega_rad_s, omega_model_rad_s)
+        return verdict, apply_vehicle_fit(announced, verdict)
 
     def update(
         self,
@@ -504,7 +557,9 @@ class StreamingDiagnoser:
     ) -> dict[str, object]:
         """Diagnose one new sample of one motor; returns the result row (state codes as ints).
 
-        ``context`` gives the sample's other variables for a model with effects.
+        Samples of all motors come in the order they arrive (time, then motor): the vehicle check runs
+        across them as :func:`diagnose` runs it over a whole log. ``context`` gives the sample's other
+        variables for a model with effects.
         """
 
         def one(x: float | None) -> NDArray[np.float64] | None:
@@ -521,6 +576,13 @@ class StreamingDiagnoser:
             sensor_current_a=one(sensor_current_a),
             extra_flags=np.array([extra_flags], dtype=np.int16),
             context=None if context is None else {k: np.array([v], dtype=float) for k, v in context.items()},
+        )
+        cols["vehicle_fit"], cols["announced"] = self.judge_vehicle(
+            np.array([time_s]),
+            np.array([motor]),
+            np.array([omega_rad_s], dtype=float),
+            cols["omega_model_rad_s"],
+            cols["announced"],
         )
         return {
             "time_s": time_s,

@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import ConfigError
 from .plausibility import PlausibilityRule
 from .states import MotorState
+from .vehicle_check import VehicleCheckRule
 
 __all__ = ["PersistenceRule", "SteadyRule", "ThresholdProfile"]
 
@@ -188,6 +189,7 @@ class ThresholdProfile:
     steady: SteadyRule = field(default_factory=SteadyRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
+    vehicle_check: VehicleCheckRule = field(default_factory=VehicleCheckRule)
     description: str = ""
 
     def __post_init__(self) -> None:

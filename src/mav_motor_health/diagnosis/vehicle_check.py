@@ -40,7 +40,14 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import ConfigError
 from .states import MotorState
 
-__all__ = ["MotorEvidence", "VehicleCheck", "VehicleCheckRule", "VehicleFit", "apply_vehicle_fit"]
+__all__ = [
+    "MotorEvidence",
+    "VehicleCheck",
+    "VehicleCheckRule",
+    "VehicleFit",
+    "apply_vehicle_fit",
+    "describe_vehicle_fit",
+]
 
 #: Up to this many rows (the live agent's batches) the check runs as a plain loop.
 _SCALAR_MAX = 16
@@ -212,18 +219,25 @@ class VehicleCheck:
 
     def describe(self, code: int, model_name: str = "the motor model") -> str:
         """One line saying what the check found (replay's output and report, the agent's log and status)."""
-        if code == VehicleFit.CHECKING:
-            return f"checking that {model_name} describes this vehicle"
-        if code == VehicleFit.FITS:
-            return f"{model_name} describes this vehicle"
-        values = [d for d in self.departures().values() if math.isfinite(d)]
-        median = float(np.median(values)) if values else math.nan
-        how = f"{abs(100 * median):.0f} % {'faster' if median > 0 else 'slower'}"
-        return (
-            f"{model_name} does not describe this vehicle: its motors turn {how} than it predicts (median "
-            f"of {len(values)}), so no fault is named (UNCALIBRATED). Fit a model on a healthy flight of this "
-            "vehicle (replay LOG --calibrate START:END, or fit) and give it with --params"
-        )
+        return describe_vehicle_fit(code, self.departures(), model_name)
+
+
+def describe_vehicle_fit(
+    code: int, departures: Mapping[int, float], model_name: str = "the motor model"
+) -> str:
+    """One line for a verdict and the motors' speed departures (see :meth:`VehicleCheck.describe`)."""
+    if code == VehicleFit.CHECKING:
+        return f"checking that {model_name} describes this vehicle"
+    if code == VehicleFit.FITS:
+        return f"{model_name} describes this vehicle"
+    values = [d for d in departures.values() if math.isfinite(d)]
+    median = float(np.median(values)) if values else math.nan
+    how = f"{abs(100 * median):.0f} % {'faster' if median > 0 else 'slower'}"
+    return (
+        f"{model_name} does not describe this vehicle: its motors turn {how} than it predicts (median "
+        f"of {len(values)}), so no fault is named (UNCALIBRATED). Fit a model on a healthy flight of this "
+        "vehicle (replay LOG --calibrate START:END, or fit) and give it with --params"
+    )
 
 
 def apply_vehicle_fit(announced: NDArray[np.integer], verdict: NDArray[np.int8]) -> NDArray[np.int8]:
