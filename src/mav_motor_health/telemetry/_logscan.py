@@ -85,7 +85,7 @@ def follow_chain(
 ) -> NDArray[np.int64]:
     """Indices (into ``starts``) of the candidates on the record chain.
 
-    ``starts`` are sorted candidate record offsets, ``next_starts[i]`` the offset record ``i`` claims for
+    ``starts`` are strictly increasing candidate record offsets, ``next_starts[i]`` the offset record ``i`` claims for
     its successor. A record whose successor lies past ``size`` is incomplete and dropped (truncation). At a
     break, the next candidate after the broken record for which ``accept(i)`` is true restarts the chain;
     the break's offset and the skipped bytes go into ``damage``. Up to ``tail_slack`` trailing bytes
@@ -133,7 +133,7 @@ def follow_chain(
                 resync_from = tail[-3]
                 chain.drop(2)
         claimed = int(next_starts[chain.last()]) if len(chain) else 0
-        k_next = int(np.searchsorted(starts, starts[resync_from], side="right"))
+        k_next = resync_from + 1  # the next candidate (``starts`` increase strictly)
         while k_next < n and not accept(k_next):
             k_next += 1
         if k_next >= n:
@@ -214,12 +214,29 @@ class _RunPaths:
         self.run_end = np.append(self.run_start[1:] - 1, n - 1)
         self.run_of = np.cumsum(is_start) - 1
         last_succ = succ[self.run_end]
-        run_succ = np.where(last_succ >= 0, self.run_of[np.maximum(last_succ, 0)], last_succ)
-        self.paths = _Paths(run_succ)
+        self.run_succ = np.where(last_succ >= 0, self.run_of[np.maximum(last_succ, 0)], last_succ)
+        self._succ_list: list[int] = self.run_succ.tolist()
+        self._paths: _Paths | None = None  # pointer doubling, built only for long paths
+
+    #: up to this many runs a path is walked one run at a time (a damaged log breaks it every few runs)
+    WALK_RUNS = 256
 
     def path_from(self, first: int) -> NDArray[np.int64]:
         run = int(self.run_of[first])
-        runs = self.paths.path_from(run)
+        walked = [run]
+        succ = self._succ_list
+        while len(walked) <= self.WALK_RUNS:
+            nxt = succ[walked[-1]]
+            if nxt < 0:
+                break
+            walked.append(nxt)
+        else:
+            if self._paths is None:
+                self._paths = _Paths(self.run_succ)
+            walked = self._paths.path_from(run).tolist()
+        if len(walked) == 1:
+            return np.arange(first, int(self.run_end[run]) + 1, dtype=np.int64)
+        runs = np.asarray(walked, dtype=np.int64)
         starts = self.run_start[runs].copy()
         starts[0] = first
         ends = self.run_end[runs]

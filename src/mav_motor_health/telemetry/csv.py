@@ -24,26 +24,66 @@ __all__ = ["read_csv", "write_csv"]
 RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 
 
+#: motor numbers a vehicle can have (ArduPilot and PX4 drive at most 32 outputs)
+MAX_MOTOR = 32
+
+
+def _text_lines(raw: bytes) -> tuple[list[tuple[int, list[str]]], list[tuple[int, int]]]:
+    """(line number, cells) of every line that is UTF-8 text, and (line, byte offset) of those that are
+    not: one bad byte loses its line, not the file."""
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
+    good: list[tuple[int, str]] = []
+    bad: list[tuple[int, int]] = []
+    offset = 0
+    for number, chunk in enumerate(raw.split(b"\n"), start=1):
+        nul = chunk.find(b"\x00")
+        try:
+            if nul >= 0:  # not text (and the csv module of Python 3.10 refuses it)
+                raise UnicodeDecodeError("utf-8", chunk, nul, nul + 1, "NUL byte")
+            good.append((number, chunk.decode("utf-8")))
+        except UnicodeDecodeError as exc:
+            bad.append((number, offset + exc.start))
+        offset += len(chunk) + 1
+    numbers = [n for n, _ in good]
+    parsed = _csv.reader(text for _, text in good)
+    return [(n, row) for n, row in zip(numbers, parsed)], bad
+
+
 def read_csv(path: str | Path) -> TelemetryTable:
-    """Read a telemetry CSV into a :class:`TelemetryTable`."""
+    """Read a telemetry CSV into a :class:`TelemetryTable`.
+
+    Damage costs the rows it touches, with one warning each kind naming the first line: a line that is
+    not UTF-8 text (with its byte offset), a row with more or fewer cells than the header, a time that is
+    not a finite number, a motor number that is not an integer 1..32, a negative speed.
+    """
     path = Path(path)
     try:
-        with path.open(newline="", encoding="utf-8-sig") as handle:
-            rows = list(_csv.reader(handle))
+        raw = path.read_bytes()
     except OSError as exc:
         raise DataError(f"cannot read: {exc.strerror or exc}", path=path) from exc
-    except UnicodeDecodeError as exc:
-        raise DataError(f"not a text CSV file (byte {exc.start} is not UTF-8)", path=path) from exc
+    lines, not_text = _text_lines(raw)
+    rows = [(n, r) for n, r in lines if any(cell.strip() for cell in r)]
+    if not_text:
+        first_line, first_byte = not_text[0]
+        if not rows:
+            raise DataError(f"not a text CSV file (byte {first_byte} is not UTF-8 text)", path=path)
+        _warn(
+            path,
+            f"{len(not_text)} line(s) are not UTF-8 text (first: line {first_line}, byte {first_byte}); "
+            "skipped",
+        )
     if not rows:
         raise DataError(
             "empty file; expected a header line such as 'time_s,motor,rpm,current_a,voltage_v'", path=path
         )
-    header = [h.strip() for h in rows[0]]
-    body = [r for r in rows[1:] if any(cell.strip() for cell in r)]
+    header_line, header_cells = rows[0]
+    header = [h.strip() for h in header_cells]
+    where = f"line {header_line}"
     duplicates = {h for h in header if header.count(h) > 1}
     if duplicates:
         raise DataError(
-            f"column(s) {', '.join(sorted(duplicates))} appear more than once", path=path, where="line 1"
+            f"column(s) {', '.join(sorted(duplicates))} appear more than once", path=path, where=where
         )
     speed = "omega_rad_s" if "omega_rad_s" in header else "rpm"
     needed = ["time_s", "motor", speed, "current_a"]
@@ -54,8 +94,24 @@ def read_csv(path: str | Path) -> TelemetryTable:
         raise DataError(
             f"missing column(s): {', '.join(what)}; the header has {', '.join(header)}",
             path=path,
-            where="line 1",
+            where=where,
         )
+    body, line_no, ragged = [], [], []
+    for number, row in rows[1:]:
+        if len(row) != len(header) and not (
+            len(row) > len(header) and not any(c.strip() for c in row[len(header) :])
+        ):
+            ragged.append(number)
+            continue
+        body.append(row)
+        line_no.append(number)
+    if ragged:
+        _warn(
+            path,
+            f"{len(ragged)} row(s) have another number of cells than the header's {len(header)} (first: "
+            f"line {ragged[0]}); skipped",
+        )
+    lines_arr = np.asarray(line_no, dtype=np.int64)
     columns: dict[str, np.ndarray] = {}
     for j, name in enumerate(header):
         if not name:
@@ -63,7 +119,7 @@ def read_csv(path: str | Path) -> TelemetryTable:
         values = np.full(len(body), np.nan)
         bad: list[int] = []
         for r, row in enumerate(body):
-            cell = row[j].strip() if j < len(row) else ""
+            cell = row[j].strip()
             if not cell:
                 continue
             try:
@@ -73,39 +129,38 @@ def read_csv(path: str | Path) -> TelemetryTable:
         if len(bad) == len(body) and body and name not in needed:
             continue  # a text column (a note, a label): not telemetry
         if bad:
-            lines = ", ".join(str(_line_of(rows, body, r)) for r in bad[:5])
-            warnings.warn(
-                f"{path}: column '{name}': {len(bad)} cell(s) are not numbers (line {lines}"
+            shown = ", ".join(str(int(lines_arr[r])) for r in bad[:5])
+            _warn(
+                path,
+                f"column '{name}': {len(bad)} cell(s) are not numbers (line {shown}"
                 f"{', ...' if len(bad) > 5 else ''}); read as missing",
-                stacklevel=2,
             )
         columns[name] = values
     motor = columns.pop("motor")
-    good_motor = np.isfinite(motor) & (motor >= 1) & (motor == np.round(motor))
-    if not good_motor.all():
-        first = int(np.flatnonzero(~good_motor)[0])
-        warnings.warn(
-            f"{path}: {int((~good_motor).sum())} row(s) have no valid motor number (first at line "
-            f"{_line_of(rows, body, first)}; expected an integer >= 1); those rows are skipped",
-            stacklevel=2,
-        )
+    keep = np.ones(len(body), dtype=bool)
+    checks = (
+        (
+            np.isfinite(motor) & (motor >= 1) & (motor <= MAX_MOTOR) & (motor == np.round(motor)),
+            f"have no valid motor number (expected an integer 1..{MAX_MOTOR})",
+        ),
+        (np.isfinite(columns["time_s"]), "have no finite time_s"),
+        (~(columns[speed] < 0), f"have a negative {speed} (a speed is >= 0)"),
+    )
+    for ok, reason in checks:
+        wrong = keep & ~ok
+        if wrong.any():
+            first = int(lines_arr[np.flatnonzero(wrong)[0]])
+            _warn(path, f"{int(wrong.sum())} row(s) {reason} (first: line {first}); those rows are skipped")
+            keep &= ok
     if speed == "rpm":
         columns["omega_rad_s"] = columns.pop("rpm") * RPM_TO_RAD_S
     columns["motor"] = motor
-    table = TelemetryTable({k: v[good_motor] for k, v in columns.items()}, source=str(path))
+    table = TelemetryTable({k: v[keep] for k, v in columns.items()}, source=str(path))
     return table.sorted_by_motor_time()
 
 
-def _line_of(rows: list[list[str]], body: list[list[str]], index: int) -> int:
-    """1-based line number of a body row (blank lines were dropped from ``body``)."""
-    target = body[index]
-    seen = -1
-    for line, row in enumerate(rows[1:], start=2):
-        if any(cell.strip() for cell in row):
-            seen += 1
-            if seen == index and row is target:
-                return line
-    return index + 2
+def _warn(path: Path, text: str) -> None:
+    warnings.warn(f"{path}: {text}", stacklevel=3)
 
 
 def write_csv(table: TelemetryTable, path: str | Path, columns: Iterable[str] | None = None) -> Path:

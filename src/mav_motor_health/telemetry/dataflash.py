@@ -182,17 +182,18 @@ def read_records(path: str | Path, names: Iterable[str] = USED_RECORDS, *, warn:
             "no DataFlash record found (no A3 95 header with a known FMT)", path=path, offset=0
         )
     next_start = heads + rec_len
+    # A resynchronisation point: a header whose next two successors are headers too (or the file's end),
+    # found for every candidate at once.
+    k = np.minimum(np.searchsorted(heads, next_start), len(heads) - 1)
+    succ = np.where(heads[k] == next_start, k, -1)
+    at_end = next_start >= size - 2
+    fits_end = next_start <= size
+    s1 = np.maximum(succ, 0)
+    second = np.where(at_end[s1], fits_end[s1], succ[s1] >= 0)
+    accepted = np.where(at_end, fits_end, (succ >= 0) & second).tolist()
 
-    def accept(k: int, links: int = 2) -> bool:
-        """A resynchronisation point: a header whose next ``links`` successors are headers too."""
-        for _ in range(links):
-            nxt = int(next_start[k])
-            if nxt >= size - 2:
-                return nxt <= size
-            k = int(np.searchsorted(heads, nxt))
-            if k >= len(heads) or heads[k] != nxt:
-                return False
-        return True
+    def accept(k: int) -> bool:
+        return accepted[k]
 
     first = 0
     while first < len(heads) and heads[first] != 0 and not accept(first):
@@ -241,8 +242,44 @@ def read_dataflash(path: str | Path) -> TelemetryTable:
     return _dataflash_table(path, read_records(path), "ArduPilot DataFlash (.bin)")
 
 
+#: The fields this reader uses of each record type. A FMT record damaged into other field names loses its
+#: type (a warning says which); ESC records without them cannot be read at all (a clear error).
+REQUIRED_FIELDS = {
+    "ESC": ("Instance", "RPM", "Curr", "Volt", "Temp"),
+    "PARM": ("Name", "Value"),
+    "BAT": ("Volt", "Curr"),
+    "MSG": ("Message",),
+    "POS": ("RelHomeAlt",),
+}
+
+
+def _drop_damaged_types(path: Path, log: DataflashLog) -> None:
+    """Record types whose format lacks the fields the reader uses (a damaged FMT record)."""
+    for name, needed in REQUIRED_FIELDS.items():
+        if name not in log.records:
+            continue
+        missing = [f for f in needed if f not in log.records[name]]
+        if _time_us(log.records[name]) is None and log.records[name]:
+            missing.append("TimeUS")
+        if not missing:
+            continue
+        if name == "ESC":
+            raise LogFormatError(
+                f"the format (FMT record) of the ESC records is damaged: it lacks the field(s) "
+                f"{', '.join(missing)}; expected {', '.join(needed)}",
+                path=path,
+            )
+        del log.records[name]
+        warnings.warn(
+            f"{path}: the format (FMT record) of the {name} records is damaged: it lacks the field(s) "
+            f"{', '.join(missing)}; those records are skipped",
+            stacklevel=3,
+        )
+
+
 def _dataflash_table(path: Path, log: DataflashLog, kind: str) -> TelemetryTable:
     """The telemetry table from decoded DataFlash records (binary or text)."""
+    _drop_damaged_types(path, log)
     if "ESC" not in log or _time_us(log["ESC"]) is None:
         raise no_esc_error(path, kind, log.counts, "ESC records: set LOG_BITMASK to log ESC telemetry")
     times = [_time_us(log[n]) for n in ("ESC", "RCOU", "BAT", "PARM") if n in log]

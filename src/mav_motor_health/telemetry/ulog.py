@@ -18,6 +18,7 @@ are taken as kelvin (PX4's UAVCAN driver reports kelvin) and converted to °C.
 from __future__ import annotations
 
 import struct
+import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -230,8 +231,12 @@ def read_ulog_topics(path: str | Path, topics: Iterable[str] = USED_TOPICS, *, w
             pos = end
             continue
         elif msg_type == 70:  # 'F'
-            fmt_name, fields = _parse_format(raw[pos + 3 : end].decode("ascii", "replace"))
-            formats[fmt_name] = fields
+            try:
+                fmt_name, fields = _parse_format(raw[pos + 3 : end].decode("ascii", "replace"))
+                formats[fmt_name] = fields
+            except ValueError:  # a damaged definition: its topic cannot be laid out and is skipped
+                damage.add(pos, 0)
+                damage.bad_records += 1
             dtypes.cache.clear()
             pos = end
             continue
@@ -279,10 +284,46 @@ def _seconds(rec: NDArray[Any], origin_us: int) -> NDArray[np.float64]:
     return (rec["timestamp"].astype(np.int64) - origin_us) / 1e6
 
 
+#: The fields this reader uses of each topic (besides ``timestamp``, which every topic needs). A topic whose
+#: format definition was damaged into other names is skipped with a warning; esc_status is an error.
+REQUIRED_FIELDS = {
+    "esc_status": ("esc_count", "esc"),
+    "battery_status": ("voltage_v", "current_a"),
+    "actuator_motors": ("control",),
+    "actuator_outputs": ("output",),
+    "vehicle_local_position": ("z", "vz"),
+}
+ESC_REPORT_FIELDS = ("esc_rpm", "esc_current", "esc_voltage")
+
+
+def _drop_damaged_topics(path: Path, log: ULog) -> None:
+    """Topics whose format lacks the fields the reader uses (a damaged format definition)."""
+    for key in list(log.topics):
+        names = log.topics[key].dtype.names or ()
+        missing = [f for f in ("timestamp", *REQUIRED_FIELDS.get(key[0], ())) if f not in names]
+        if key[0] == "esc_status" and "esc" in names:
+            inner = log.topics[key]["esc"].dtype.names or ()
+            missing += [f"esc.{f}" for f in ESC_REPORT_FIELDS if f not in inner]
+        if not missing:
+            continue
+        if key[0] == "esc_status":
+            raise LogFormatError(
+                f"the format definition of the esc_status topic is damaged: it lacks {', '.join(missing)}",
+                path=path,
+            )
+        del log.topics[key]
+        warnings.warn(
+            f"{path}: the format definition of the {key[0]} topic is damaged (it lacks {', '.join(missing)}); "
+            "that topic is skipped",
+            stacklevel=3,
+        )
+
+
 def read_ulog(path: str | Path) -> TelemetryTable:
     """Read a PX4 ``.ulg`` into the telemetry table (one row per ESC report)."""
     path = Path(path)
     log = read_ulog_topics(path)
+    _drop_damaged_topics(path, log)
     esc_status = log.get("esc_status")
     if esc_status is None:
         raise no_esc_error(path, "PX4 ULog (.ulg)", log.counts, "the esc_status topic")
