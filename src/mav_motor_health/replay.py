@@ -20,6 +20,7 @@ import math
 import os
 import sys
 import time
+import traceback
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -439,18 +440,33 @@ def _replay_worker(
             log, out_dir, params, profile, force=force, reissue_warnings=False, calibrate_s=calibrate_s
         )
     except MotorHealthError as exc:
-        return ReplayResult(
+        return _error_result(log, out_dir, str(exc), started)
+    except Exception as exc:  # a bug met in this log must not stop the others: an ERROR row that says so
+        detail = traceback.format_exc()
+        return _error_result(
             log,
             out_dir,
-            Path(log).suffix.lstrip("."),
-            0.0,
-            0,
-            (),
-            (),
-            (),
-            time.monotonic() - started,
-            str(exc),
+            f"internal error ({type(exc).__name__}: {exc}); please report it with this log",
+            started,
+            (detail,),
         )
+
+
+def _error_result(
+    log: str, out_dir: str, message: str, started: float, detail: tuple[str, ...] = ()
+) -> ReplayResult:
+    return ReplayResult(
+        log,
+        out_dir,
+        Path(log).suffix.lstrip("."),
+        0.0,
+        0,
+        (),
+        (),
+        detail,
+        time.monotonic() - started,
+        message,
+    )
 
 
 def _folder_names(logs: Sequence[Path]) -> list[str]:
@@ -494,12 +510,17 @@ def replay_many(
             bar.update(len(results), len(paths), path.name)
     else:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = [
-                pool.submit(_replay_worker, str(p), str(f), params, profile, force, calibrate_s)
+            futures = {
+                pool.submit(_replay_worker, str(p), str(f), params, profile, force, calibrate_s): (p, f)
                 for p, f in zip(paths, folders)
-            ]
+            }
             for future in as_completed(futures):
-                results.append(future.result())
+                try:
+                    results.append(future.result())
+                except Exception as exc:  # the worker process itself died (killed, out of memory)
+                    log, folder = futures[future]
+                    message = f"worker process failed ({type(exc).__name__}: {exc})"
+                    results.append(_error_result(str(log), str(folder), message, time.monotonic()))
                 if on_result:
                     on_result(results[-1])
                 bar.update(len(results), len(paths), Path(results[-1].log).name)

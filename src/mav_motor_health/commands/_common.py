@@ -11,7 +11,89 @@ from ..errors import DataError
 from ..model.params import MotorParams
 from ..telemetry.table import TelemetryTable
 
-__all__ = ["add_model_arguments", "models_from_args", "read_telemetry", "write_new_file"]
+__all__ = [
+    "add_model_arguments",
+    "finite_float",
+    "models_from_args",
+    "non_negative_float",
+    "port_number",
+    "port_or_zero",
+    "positive_float",
+    "positive_int",
+    "read_telemetry",
+    "socket_url",
+    "write_new_file",
+]
+
+
+def positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {value}")
+    return value
+
+
+def finite_float(text: str) -> float:
+    """argparse type: a finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    value = finite_float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text}")
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    value = finite_float(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text}")
+    return value
+
+
+def port_or_zero(text: str) -> int:
+    """argparse type: a port 1..65535, or 0 for a free one."""
+    if text.strip() == "0":
+        return 0
+    return port_number(text)
+
+
+def socket_url(text: str) -> str:
+    """argparse type: a MAVLink socket URL (udpin:, udpout:, tcp:, tcpin: HOST:PORT with a valid port)."""
+    from ..agent.link import parse_url
+    from ..errors import LinkError
+
+    try:
+        url = parse_url(text)
+    except LinkError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if url.kind != "socket":
+        raise argparse.ArgumentTypeError(f"expected udpin:, udpout:, tcp: or tcpin:HOST:PORT, got {text!r}")
+    return text
+
+
+def port_number(text: str) -> int:
+    """argparse type: a TCP/UDP port, 1..65535."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a port number 1..65535, got {text!r}") from None
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"expected a port number 1..65535, got {value}")
+    return value
 
 
 def add_model_arguments(parser: argparse.ArgumentParser) -> None:

@@ -7,11 +7,13 @@ import asyncio
 import logging
 import os
 import sys
+from pathlib import Path
 
 from ..agent.app import run_agent
 from ..agent.config import load_agent_config
 from ..agent.demo import parse_fault, run_with_sim
-from ..errors import ConfigError
+from ..errors import ConfigError, DataError
+from ._common import positive_float
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -40,7 +42,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--fault", metavar="F@T:M", help="with --sim: inject e.g. F3.1@20:3 (fault at 20 s on motor 3)"
     )
     p.add_argument(
-        "--duration", type=float, metavar="S", help="stop after S seconds (default: run until SIGTERM)"
+        "--duration",
+        type=positive_float,
+        metavar="S",
+        help="stop after S seconds (default: run until SIGTERM)",
     )
     p.add_argument("--mqtt", metavar="URL", help="broker: mqtt://[user:pass@]host[:port] or mqtts://...")
     p.add_argument("--params", metavar="FILE", help="motor parameters TOML or a name in params/motors")
@@ -79,6 +84,12 @@ def run(args: argparse.Namespace) -> int:
         profile=args.profile,
         vehicle_id=args.vehicle_id,
     )
+    if config.connect.lower().endswith(".tlog"):  # replay through the live path: the file must hold data
+        log = Path(config.connect)
+        if not log.is_file():
+            raise DataError("file not found" if not log.exists() else "is not a file", path=log)
+        if log.stat().st_size == 0:
+            raise DataError("empty file: no MAVLink messages to replay", path=log)
     setup_logging(args.verbose)
     live_view = sys.stdout.isatty() if args.tui is None else args.tui
     if live_view and sys.stderr.isatty() and not args.verbose:

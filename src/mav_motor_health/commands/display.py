@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 
 from ..publish.web import DisplayConfig, DisplayServer
+from ._common import port_or_zero
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -25,7 +26,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="broker WebSocket URL the page connects to, e.g. wss://broker.example:8081 "
         "(default: ws://<host the page was loaded from>:9001)",
     )
-    p.add_argument("--port", type=int, default=8080, help="HTTP port (default 8080; 0 picks a free one)")
+    p.add_argument(
+        "--port", type=port_or_zero, default=8080, help="HTTP port (default 8080; 0 picks a free one)"
+    )
     p.add_argument(
         "--bind",
         default="127.0.0.1",

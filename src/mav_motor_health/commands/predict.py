@@ -8,12 +8,18 @@ import math
 
 from ..config import DEFAULT_MOTOR, load_motor_params
 from ..model.equations import steady_state
+from ._common import non_negative_float
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("predict", help="steady-state speed and current for input voltages")
     p.add_argument(
-        "--voltage", type=float, nargs="+", required=True, metavar="V", help="input voltage(s) [V]"
+        "--voltage",
+        type=non_negative_float,
+        nargs="+",
+        required=True,
+        metavar="V",
+        help="input voltage(s) [V]",
     )
     p.add_argument("--params", default=DEFAULT_MOTOR, metavar="FILE", help="motor parameters TOML or name")
     p.add_argument("--json", action="store_true", help="print JSON")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..config import DEFAULT_MOTOR, load_motor_params, load_profile
 from ..replay import ReplayResult, collect_logs, print_verdicts, replay_log, replay_many
+from ._common import positive_int
 
 DEFAULT_REPLAY_PROFILE = "flight"
 
@@ -38,7 +39,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default="replay", metavar="DIR", help="output folder (default ./replay)")
     p.add_argument("--force", action="store_true", help="replace the files of an existing output folder")
     p.add_argument(
-        "--jobs", type=int, default=None, metavar="N", help="worker processes (default: CPU count)"
+        "--jobs", type=positive_int, default=None, metavar="N", help="worker processes (default: CPU count)"
     )
     p.add_argument(
         "--calibrate",

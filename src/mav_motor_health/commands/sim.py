@@ -6,8 +6,10 @@ import argparse
 import logging
 import time
 
+from ..agent.demo import parse_fault
 from ..sim.live import FAULT_CODES, SimVehicle
 from ..sim.scenario import load_scenario
+from ._common import positive_float, socket_url
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -20,13 +22,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "SIM_MOT_FLT_SEV (severity 0-1), or COMMAND_LONG 31010 (MAV_CMD_USER_1: fault, motor, severity).",
     )
     p.add_argument(
-        "--connect", required=True, metavar="URL", help="udpout:HOST:PORT, udpin:..., tcpin:..., tcp:..."
+        "--connect",
+        required=True,
+        type=socket_url,
+        metavar="URL",
+        help="udpout:HOST:PORT, udpin:..., tcpin:..., tcp:...",
     )
     p.add_argument(
         "--scenario", default="flight/healthy_calm", help="flight scenario (default flight/healthy_calm)"
     )
-    p.add_argument("--speed", type=float, default=1.0, help="simulated seconds per real second (default 1)")
-    p.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S real seconds")
+    p.add_argument(
+        "--speed", type=positive_float, default=1.0, help="simulated seconds per real second (default 1)"
+    )
+    p.add_argument(
+        "--duration", type=positive_float, default=None, metavar="S", help="stop after S real seconds"
+    )
     p.add_argument(
         "--fault",
         default=None,
@@ -41,9 +51,8 @@ def run(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     fault_at = None
     if args.fault:
-        kind, _, rest = args.fault.partition("@")
-        when, _, motor = rest.partition(":")
-        fault_at = (kind, float(when or 0), int(motor or 1))
+        plan = parse_fault(args.fault)
+        fault_at = (plan.kind, plan.at_s, plan.motor)
     started = time.monotonic()
     with SimVehicle(scenario, args.connect, speed=args.speed) as vehicle:
         print(f"simulated hexacopter on {args.connect} (speed x{args.speed}); Ctrl-C to stop", flush=True)

@@ -9,6 +9,7 @@ import time
 from ..sim.engine import run_scenario
 from ..sim.scenario import load_scenario
 from ..sim.writers import write_record
+from ._common import positive_float
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -21,7 +22,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("scenario", help="scenario TOML file or bundled name")
     p.add_argument("--out", required=True, metavar="FILE", help="output .tlog, .bin or .csv")
     p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    p.add_argument("--duration", type=float, default=None, metavar="S", help="override the duration [s]")
+    p.add_argument(
+        "--duration", type=positive_float, default=None, metavar="S", help="override the duration [s]"
+    )
     p.add_argument("--force", action="store_true", help="replace existing output files")
     p.set_defaults(run=run)
 

@@ -10,7 +10,7 @@ from ..config import dump_profile, load_motor_params, load_profile
 from ..diagnosis.tuning import LabelledFlight, TuneResult, tune_profile
 from ..errors import DataError
 from ..evaluation.score import read_truth
-from ._common import read_telemetry, write_new_file
+from ._common import positive_int, read_telemetry, write_new_file
 
 #: The standard training campaign: seeds used for tuning only (the benchmark tests on other seeds).
 CAMPAIGN_SEED = 1000
@@ -37,7 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--name", default="flight", help="name of the tuned profile")
     p.add_argument("--out", metavar="FILE", help="write the tuned profile TOML here")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes for --campaign")
+    p.add_argument("--jobs", type=positive_int, default=None, help="worker processes for --campaign")
     p.set_defaults(run=run)
 
 

@@ -31,23 +31,29 @@ MAX_MOTOR = 32
 def _text_lines(raw: bytes) -> tuple[list[tuple[int, list[str]]], list[tuple[int, int]]]:
     """(line number, cells) of every line that is UTF-8 text, and (line, byte offset) of those that are
     not: one bad byte loses its line, not the file."""
-    if raw.startswith(b"\xef\xbb\xbf"):
-        raw = raw[3:]
-    good: list[tuple[int, str]] = []
+    offset = 3 if raw.startswith(b"\xef\xbb\xbf") else 0  # byte offsets count in the file
+    raw = raw[offset:]
+    good: list[tuple[int, list[str]]] = []
     bad: list[tuple[int, int]] = []
-    offset = 0
     for number, chunk in enumerate(raw.split(b"\n"), start=1):
-        nul = chunk.find(b"\x00")
-        try:
-            if nul >= 0:  # not text (and the csv module of Python 3.10 refuses it)
-                raise UnicodeDecodeError("utf-8", chunk, nul, nul + 1, "NUL byte")
-            good.append((number, chunk.decode("utf-8")))
-        except UnicodeDecodeError as exc:
-            bad.append((number, offset + exc.start))
+        start = offset
         offset += len(chunk) + 1
-    numbers = [n for n, _ in good]
-    parsed = _csv.reader(text for _, text in good)
-    return [(n, row) for n, row in zip(numbers, parsed)], bad
+        text = chunk[:-1] if chunk.endswith(b"\r") else chunk
+        # each line on its own: a damaged quote or line end must not pull the next lines into this one
+        junk = min((k for k in (text.find(b"\x00"), text.find(b"\r")) if k >= 0), default=-1)
+        if junk >= 0:
+            bad.append((number, start + junk))
+            continue
+        try:
+            cells = next(_csv.reader([text.decode("utf-8")]), [])
+        except UnicodeDecodeError as exc:
+            bad.append((number, start + exc.start))
+            continue
+        except _csv.Error:
+            bad.append((number, start))
+            continue
+        good.append((number, cells))
+    return good, bad
 
 
 def read_csv(path: str | Path) -> TelemetryTable:

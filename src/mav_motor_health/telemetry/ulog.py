@@ -142,8 +142,8 @@ def _value(type_name: str, raw: bytes) -> Any:
     if base == "char":
         return raw.split(b"\0", 1)[0].decode("utf-8", "replace")
     code = _BASIC.get(base)
-    if code is None or np.dtype(code).itemsize > len(raw):
-        return raw
+    if code is None or np.dtype(code).itemsize > len(raw) or len(raw) % np.dtype(code).itemsize:
+        return raw  # not a value of that type (a damaged message): kept as bytes, not a number
     values = np.frombuffer(raw, dtype=code)
     return values[0].item() if len(values) == 1 else values.tolist()
 
@@ -181,13 +181,30 @@ def read_ulog_topics(path: str | Path, topics: Iterable[str] = USED_TOPICS, *, w
             return msg_id in sizes and sizes[msg_id] in (None, msg_size)
         return msg_type != ord("S") or raw[p + 3 : p + 3 + len(SYNC_MAGIC)] == SYNC_MAGIC
 
+    def described(p: int) -> bool:
+        """A subscription, format, info or parameter message whose name reads as a name."""
+        msg_size, msg_type = unpack_header(raw, p)
+        body = raw[p + 3 : p + 3 + msg_size]
+        if msg_type == ord("A"):
+            name = body[3:]
+        elif msg_type == ord("F"):
+            name = body.partition(b":")[0]
+        elif msg_type in (ord("I"), ord("P"), ord("Q")) and body:
+            name = body[1 : 1 + body[0]]
+            if b" " not in name:
+                return False
+            name = name.replace(b" ", b"").replace(b"[", b"").replace(b"]", b"")
+        else:
+            return False
+        return 0 < len(name) <= 255 and name.replace(b"_", b"").isalnum() and name.isascii()
+
     def resync(p: int) -> int:
         """The next offset after ``p`` that starts three plausible messages in a row, one of them a data
         message of a subscribed topic with the right size (or that reaches the end of the file)."""
         for q in range(p + 1, size - 2):
             if raw[q + 2] not in _KNOWN_TYPES or not plausible(q):
                 continue
-            strong, r = False, q
+            strong, named, r = False, 0, q
             for _ in range(3):
                 if r >= size:
                     break
@@ -195,7 +212,12 @@ def read_ulog_topics(path: str | Path, topics: Iterable[str] = USED_TOPICS, *, w
                     strong = False
                     break
                 strong = strong or raw[r + 2] in (ord("D"), ord("S"))
+                named += described(r)
                 r = r + 3 + unpack_header(raw, r)[0]
+            else:
+                # three definitions, subscriptions or parameters with readable names: the definitions
+                # section goes on (its subscriptions are what later data messages need)
+                strong = strong or named == 3
             if strong:
                 return q
         return size
