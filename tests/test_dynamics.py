@@ -101,3 +101,25 @@ def test_small_batches_follow_the_same_recurrence_as_whole_logs() -> None:
         )
         block = padded[:n]
         np.testing.assert_allclose(loop, block, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_whole_arrays_give_the_sample_by_sample_recurrence_with_gaps_resets_and_missing_values(seed) -> None:
+    """The vectorised path (runs of resets at once, blocks between them) equals the plain recurrence:
+    missing targets, stretches with no time constant (no lag), long gaps, an undefined start."""
+    from mav_motor_health.model.dynamics import ResponseCarry, _response_scalar, first_order_response
+
+    rng = np.random.default_rng(seed)
+    n = 3000
+    t = np.cumsum(rng.choice([0.01, 0.02, 0.05, 0.3], size=n, p=[0.6, 0.25, 0.1, 0.05]))
+    x = rng.normal(500.0, 50.0, n)
+    x[rng.random(n) < 0.1] = np.nan
+    x[100:400] = np.nan  # a long silence at the start of a stretch
+    tau = np.full(n, 0.15)
+    tau[800:1600] = np.nan  # no inertia known here: no lag
+    tau[2000:2100] = 1e-6  # a decay too strong to carry: resets
+    carry = ResponseCarry() if seed % 2 else ResponseCarry(time_s=t[0] - 0.01, input=480.0, output=490.0)
+    whole, end = first_order_response(t, x, tau, carry)
+    one, end_one = _response_scalar(t, x, tau, carry)
+    np.testing.assert_allclose(whole, one, rtol=1e-12, atol=1e-9, equal_nan=True)
+    assert end.output == pytest.approx(end_one.output, rel=1e-12, nan_ok=True)

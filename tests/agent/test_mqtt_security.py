@@ -1,10 +1,13 @@
 """MQTT with TLS and username/password against a real Mosquitto: the agent connects with the right
-credentials and CA, and keeps retrying (without failing) with wrong ones."""
+credentials and CA; with wrong ones it says so once, stops asking, keeps diagnosing over MAVLink and ends
+with a failing exit code."""
 
 from __future__ import annotations
 
 import asyncio
+import io
 import json
+import logging
 import os
 import socket
 import ssl
@@ -17,6 +20,7 @@ from agent_parts import MOSQUITTO, free_port, wait_for
 from vehicle_peer import VehiclePeer
 
 from mav_motor_health.agent import Agent, load_agent_config
+from mav_motor_health.agent.app import run_agent
 
 
 def _accepts(port: int) -> bool:
@@ -55,7 +59,9 @@ def tls_broker(tmp_path: Path):
     proc.wait(10)
 
 
-def test_agent_publishes_over_tls_with_a_password_and_survives_a_wrong_one(tls_broker, paper_motor, tmp_path):
+def test_agent_publishes_over_tls_with_a_password_and_survives_a_wrong_one(
+    tls_broker, paper_motor, tmp_path, caplog
+):
     folder, port = tls_broker
     received: list[tuple[str, dict]] = []
     listener = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id="tls-listener")
@@ -85,15 +91,34 @@ def test_agent_publishes_over_tls_with_a_password_and_survives_a_wrong_one(tls_b
                     await asyncio.sleep(0.05)
                 assert agent.mqtt is not None and agent.mqtt.settings.tls
             async with Agent(load_agent_config(bad, connect=url)) as agent:
-                await asyncio.sleep(1.5)  # several refused attempts
+                await asyncio.sleep(1.5)  # retrying could not help: one refusal, said once
                 assert agent.mqtt is not None and agent.mqtt.connections == 0
+                assert agent.mqtt.login_refused is not None
+                assert "refused the login (" in agent.mqtt.login_refused  # Mosquitto: "not authorised"
                 assert agent.monitor.samples > 0  # the MAVLink side carries on regardless
+                assert ("MQTT login refused: no MQTT") in [text for _, text in agent.statustexts]
 
     try:
-        asyncio.run(asyncio.wait_for(main(), 60))
+        with caplog.at_level(logging.ERROR, logger="mav_motor_health"):
+            asyncio.run(asyncio.wait_for(main(), 60))
+        said = [r.getMessage() for r in caplog.records if "refused the login" in r.getMessage()]
+        assert len(said) == 1 and f"127.0.0.1:{port}" in said[0]
         status = [p for t, p in received if t == "mmh/tls1/status"]
         assert status[0]["online"] is True and status[-1]["online"] is False
         assert not any(t.startswith("mmh/tls2/") for t, _ in received)
     finally:
         listener.loop_stop()
         listener.disconnect()
+
+
+def test_a_refused_login_ends_the_run_with_a_failing_exit_code(tls_broker, paper_motor, tmp_path) -> None:
+    folder, port = tls_broker
+    bad = tmp_path / "bad.toml"
+    bad.write_text(
+        f'[agent]\nvehicle_id = "tls3"\n[mqtt]\nurl = "mqtts://pilot:wrong@127.0.0.1:{port}"\n'
+        f'ca_file = "{folder}/ca.crt"\n'
+    )
+    with VehiclePeer(paper_motor) as peer:
+        config = load_agent_config(bad, connect=f"udpout:127.0.0.1:{peer.port}")
+        code = asyncio.run(run_agent(config, tui=False, stream=io.StringIO(), duration_s=2.0))
+    assert code == 3

@@ -96,6 +96,7 @@ class Agent:
         self._esc_lost_told = False
         self._pending: list[MotorSample] = []
         self._vehicle_fit_told = self.monitor.vehicle_fit
+        self._mqtt_refused_told = False
 
     # -- lifetime ------------------------------------------------------------------------------------
     async def __aenter__(self) -> Agent:
@@ -235,6 +236,8 @@ class Agent:
     def _changed(self, change: StateChange) -> None:
         self.changes.append(change)
         level = logging.WARNING if change.state != MotorState.NORMAL else logging.INFO
+        if self.view is not None and not self.view.live:
+            level = logging.DEBUG  # the view writes one line per change with its evidence: not twice
         log.log(
             level,
             "motor %d: %s -> %s (%s)",
@@ -408,9 +411,15 @@ class Agent:
                     self._send_motor_health()
             if self.mqtt is not None:
                 self._publish_telemetry(telemetry_period)
+                if self.mqtt.login_refused and not self._mqtt_refused_told:
+                    self._mqtt_refused_told = True  # said once; the diagnosis goes on over MAVLink
+                    if self.config.publish.statustext and not self.tlog:
+                        self._send_text("MQTT login refused: no MQTT", MAV_SEVERITY_WARNING)
             if self.view is not None and mono >= next_view:
                 next_view = mono + 0.2
                 header = f"{self.tracker.autopilot or 'no autopilot yet'}{'' if self.tracker.up else ' (link down)'}"
+                if self.mqtt is not None and self.mqtt.login_refused:
+                    header += "  MQTT: login refused"
                 self.view.redraw(self.monitor.status, self.now(), header)
 
     def _send_named_values(self) -> None:
@@ -468,8 +477,11 @@ async def run_agent(
     tui: bool | None = None,
     stream: TextIO | None = None,
     duration_s: float | None = None,
+    until: Callable[[], bool] | None = None,
+    report: Callable[[Agent], str] | None = None,
 ) -> int:
-    """Run until SIGTERM/SIGINT, a .tlog's end or ``duration_s`` seconds; returns the exit code."""
+    """Run until SIGTERM/SIGINT, a .tlog's end, ``duration_s`` seconds or ``until()`` turns true; then
+    ``report(agent)`` (if given) is written to the output. Returns the exit code."""
     from .view import StateView
 
     out = stream or sys.stdout
@@ -483,12 +495,28 @@ async def run_agent(
     async with Agent(config, view=view) as agent:
         stopper = asyncio.ensure_future(stop.wait())
         finished = asyncio.ensure_future(agent.wait())
-        await asyncio.wait({stopper, finished}, timeout=duration_s, return_when=asyncio.FIRST_COMPLETED)
-        for fut in (stopper, finished):
+        waits = {stopper, finished}
+        if until is not None:
+
+            async def poll() -> None:
+                while not until():
+                    await asyncio.sleep(0.1)
+
+            waits.add(asyncio.ensure_future(poll()))
+        await asyncio.wait(waits, timeout=duration_s, return_when=asyncio.FIRST_COMPLETED)
+        for fut in waits:
             fut.cancel()
         if stop.is_set():
             log.info("signal received: shutting down")
+        if report is not None:
+            agent.flush()
+            out.write(report(agent))
+            out.flush()
+        refused = agent.mqtt.login_refused if agent.mqtt is not None else None
     for sig in (signal.SIGTERM, signal.SIGINT):
         with contextlib.suppress(NotImplementedError, RuntimeError):
             loop.remove_signal_handler(sig)
+    if refused:  # the diagnosis ran, but what was asked of MQTT was not done
+        log.error("%s", refused)
+        return 3
     return 0

@@ -12,12 +12,13 @@ import contextlib
 import logging
 import socket
 from dataclasses import dataclass, replace
+from typing import Any
 
 from ..errors import ConfigError
 from .app import run_agent
 from .config import AgentConfig
 
-__all__ = ["FaultPlan", "parse_fault", "run_with_sim"]
+__all__ = ["FaultPlan", "demo_summary", "parse_fault", "run_with_sim"]
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +47,51 @@ def parse_fault(text: str) -> FaultPlan:
     return plan
 
 
+def demo_summary(agent: Any, scenario: str, fault: FaultPlan | None, flown_s: float) -> str:
+    """What was injected, what the agent announced and how soon, and where to go from here."""
+    origin = agent.changes[0].time_s if agent.changes else 0.0  # the agent's clock at the first state
+    faults = [c for c in agent.changes if c.state.is_fault]
+    lines = ["", f"demo finished: {flown_s:.0f} s of the simulated flight '{scenario}'"]
+    if fault is None:
+        lines.append("  injected: nothing (a healthy flight)")
+    else:
+        lines.append(f"  injected: {fault.kind} on motor {fault.motor} at {fault.at_s:g} s")
+    found = None
+    if fault is not None:
+        found = next(
+            (
+                c
+                for c in faults
+                if c.motor == fault.motor and c.state.label == fault.kind and c.time_s - origin >= 0
+            ),
+            None,
+        )
+    if found is not None and fault is not None:
+        delay = found.time_s - origin - fault.at_s
+        lines.append(
+            f"  announced: motor {found.motor} {found.state.label} ({found.state.description}) "
+            f"{delay:.2f} s after the injection"
+        )
+    elif fault is not None:
+        lines.append(f"  announced: {fault.kind} on motor {fault.motor} was NOT announced")
+    others = [c for c in faults if found is None or c is not found]
+    lines.append(
+        "  other fault announcements: "
+        + (
+            ", ".join(f"motor {c.motor} {c.state.label} at {c.time_s - origin:.1f} s" for c in others)
+            or "none"
+        )
+    )
+    lines += [
+        "next:",
+        "  replay a flight log:    mav-motor-health replay LOG.tlog|.bin|.ulg --out DIR  (then open report.html)",
+        "  watch in a browser:     mav-motor-health display --broker-ws ws://HOST:9001  (the agent with --mqtt URL)",
+        "  your own motor's model: mav-motor-health fit DATA.csv --out my_motor.toml, then --params my_motor.toml",
+        "",
+    ]
+    return "\n".join(lines)
+
+
 def _free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
@@ -59,7 +105,8 @@ async def run_with_sim(
     tui: bool | None = None,
     duration_s: float | None = None,
 ) -> int:
-    """Start the simulated hexacopter on a loopback port, then the agent on it, until SIGTERM/Ctrl-C."""
+    """Start the simulated hexacopter on a loopback port, then the agent on it, until the scenario's
+    flight ends (or SIGTERM/Ctrl-C, or ``duration_s``); then print what happened and what to do next."""
     from ..sim.live import SimVehicle
     from ..sim.scenario import load_scenario
 
@@ -77,9 +124,16 @@ async def run_with_sim(
         vehicle.inject(fault.kind, fault.motor)
         log.info("simulator: %s injected on motor %d at %.1f s", fault.kind, fault.motor, fault.at_s)
 
+    end_s = load_scenario(scenario).duration_s
+
+    def report(agent: Any) -> str:
+        return demo_summary(agent, scenario, fault, vehicle.sim_time_s)
+
     injector = asyncio.ensure_future(inject_later())
     try:
-        return await run_agent(config, tui=tui, duration_s=duration_s)
+        return await run_agent(
+            config, tui=tui, duration_s=duration_s, until=lambda: vehicle.sim_time_s >= end_s, report=report
+        )
     finally:
         injector.cancel()
         with contextlib.suppress(asyncio.CancelledError):

@@ -32,7 +32,8 @@ def add_data_arguments(p: argparse.ArgumentParser, *, several: bool = True) -> N
         action="append",
         default=[],
         metavar="FILE",
-        help="a Python file declaring user effects (EFFECTS = [Effect(...)]); repeatable",
+        help="a Python file declaring user effects (EFFECTS = [Effect(...)]); repeatable. The file is RUN as "
+        "Python with your rights: name only files you trust",
     )
 
 

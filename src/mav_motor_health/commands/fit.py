@@ -45,7 +45,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="append",
         default=[],
         metavar="FILE",
-        help="a Python file declaring user effects for --with (repeatable)",
+        help="a Python file declaring user effects for --with (repeatable). The file is RUN as Python with "
+        "your rights: name only files you trust",
     )
     p.add_argument("--plot", metavar="FILE", help="with --with: plot the error after each step (PNG)")
     p.set_defaults(run=run)

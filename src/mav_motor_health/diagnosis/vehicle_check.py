@@ -20,8 +20,8 @@ and, once enough motors have shown enough of themselves, decides for the vehicle
 The departure is dimensionless: a wrong motor type or propeller moves every motor by tens of percent (the
 bundled paper motor on a real PX4 quad: −75 %; on ArduPilot SITL's hexa: −17 to −26 %), while the spread
 of one motor type (KV tolerance, a few percent) and a flight's transients averaged over two seconds stay
-well below the default 10 % (simulated healthy and faulty flights in calm to gusty air: healthy motors
-within ±8 %; ``tests/test_vehicle_check.py``). The current is not used: in gusty air its ratio to the
+well below the default 10 % (the simulated flights in ``sitl_logs/``, calm to gusty air: healthy motors
+within ±2 %, faulty ones down to −60 %). The current is not used: in gusty air its ratio to the
 steady-state model drifts by +20–30 % on healthy motors, and a current that reads wrongly on every motor
 is the plausibility checks' and the identification's business. The rule is streaming: rows are fed in
 time order (any motors), the carry holds a count and two sums per motor, and the live agent feeding rows one at a

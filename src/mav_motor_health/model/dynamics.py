@@ -81,24 +81,43 @@ def first_order_response(
     decay = np.where(held, 0.0, decay)  # a missing input: the output holds
     out = np.empty(n)
     y0 = carry.output
+    # A reset (no lag, or no previous sample) gives the target itself, held where the target is missing.
+    reset = ~np.isfinite(decay) | (decay >= _BLOCK_DECAY)
+    reset_at = np.flatnonzero(reset)
+    lagged_at = np.flatnonzero(~reset)
+    finite_at = np.flatnonzero(np.isfinite(x))
+    cum = np.cumsum(np.where(reset, 0.0, decay))
     start = 0
-    cum = np.cumsum(np.minimum(decay, _BLOCK_DECAY))
     while start < n:
-        # A block ends where the accumulated decay would underflow, or at an infinite decay (a reset).
+        if reset[start]:
+            # a run of resets, all at once: the targets, the last finite one held over missing ones
+            k = int(np.searchsorted(lagged_at, start))
+            stop = int(lagged_at[k]) if k < lagged_at.size else n
+            values = x[start:stop]
+            last = np.maximum.accumulate(np.where(np.isfinite(values), np.arange(values.size), -1))
+            out[start:stop] = np.where(last >= 0, values[np.maximum(last, 0)], y0)
+            y0 = float(out[stop - 1])
+            start = stop
+            continue
+        k = int(np.searchsorted(reset_at, start))
+        next_reset = int(reset_at[k]) if k < reset_at.size else n
+        if not np.isfinite(y0):
+            # no output yet: undefined until the first finite target, which starts it
+            k = int(np.searchsorted(finite_at, start))
+            first = int(finite_at[k]) if k < finite_at.size else n
+            first = min(first, next_reset)
+            out[start:first] = y0
+            if first < next_reset:
+                y0 = float(x[first])
+                out[first] = y0
+                first += 1
+            start = first
+            continue
+        # a block: until the next reset, or where the accumulated decay would underflow
         base = cum[start - 1] if start else 0.0
         end = int(np.searchsorted(cum, base + _BLOCK_DECAY, side="right"))
-        end = max(end, start + 1)
-        resets = np.flatnonzero(
-            ~np.isfinite(decay[start + 1 : end]) | (decay[start + 1 : end] >= _BLOCK_DECAY)
-        )
-        if resets.size:
-            end = start + 1 + int(resets[0])
+        end = min(max(end, start + 1), next_reset)
         d = decay[start:end]
-        if not np.isfinite(d[0]) or d[0] >= _BLOCK_DECAY or not np.isfinite(y0):
-            y0 = x[start] if np.isfinite(x[start]) else y0  # no lag (or no past): the target itself
-            out[start] = y0
-            start += 1
-            continue
         a = np.exp(-d)
         log_a = -np.cumsum(d)  # log of the product of a over the block
         weights = (1.0 - a) * np.nan_to_num(mean_in[start:end]) * np.exp(-log_a)

@@ -298,6 +298,8 @@ class MqttPublisher:
         self.agent_name = agent_name
         self.run_id = run_id or new_run_id()
         self.event_seq = 0
+        #: set when the broker refused the credentials (then no more attempts are made)
+        self.login_refused: str | None = None
         self.outbox = Outbox(settings.queue_limit, settings.telemetry_limit)
         self.connected = asyncio.Event()
         self.connections = 0  #: successful connections so far
@@ -409,6 +411,15 @@ class MqttPublisher:
                     self.connected.set()
                     await self._drain(client)
             except aiomqtt.MqttError as exc:
+                refused = _login_refused(exc)
+                if refused is not None:
+                    # retrying cannot help: say it once; the agent's MAVLink side carries on without MQTT
+                    self.login_refused = (
+                        f"MQTT broker {self.settings.host}:{self.settings.port} refused the login "
+                        f"({refused}); not retrying: check the user name and password"
+                    )
+                    log.error("%s", self.login_refused)
+                    return
                 if self.connected.is_set():
                     log.warning("MQTT connection lost: %s; %d messages wait", exc, len(self.outbox))
                 else:
@@ -442,6 +453,31 @@ class MqttPublisher:
             )
             self.outbox.done(message)
             self.published += 1
+
+
+#: CONNACK codes that say the broker will not accept these credentials (MQTT 3.1.1: 4, 5; MQTT 5: 134, 135)
+_LOGIN_REFUSED = {
+    4: "bad user name or password",
+    5: "not authorised",
+    134: "bad user name or password",
+    135: "not authorised",
+}
+
+
+def _login_refused(exc: aiomqtt.MqttError) -> str | None:
+    """The reason if ``exc`` is the broker refusing the credentials, else None."""
+    from aiomqtt.exceptions import MqttConnectError
+
+    # only the broker's answer to CONNECT: a lost or refused socket raises MqttCodeError with paho's own
+    # error numbers (4 and 5 there mean "no connection" and "connection refused")
+    rc = exc.rc if isinstance(exc, MqttConnectError) else None
+    if rc is None:
+        return None
+    code: Any = getattr(rc, "value", rc)
+    try:
+        return _LOGIN_REFUSED.get(int(code))
+    except (TypeError, ValueError):
+        return None
 
 
 def _consume_disconnect_error(client: aiomqtt.Client | None) -> None:
