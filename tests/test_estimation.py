@@ -78,3 +78,19 @@ def test_report_names_every_parameter(paper_motor: MotorParams) -> None:
     d = fit.to_dict()
     assert set(d["params"]) == {"R_ohm", "k_e", "C_p", "B", "T_f", "k"}
     assert set(d["stderr"]) >= {"R_ohm", "k_e", "C_p", "B", "T_f"}
+
+
+def test_paper_noise_gives_a_physical_model_in_a_hundred_draws(paper_motor: MotorParams) -> None:
+    """The paper's 11 voltage levels and sensor noise, 100 seeded draws: k = 3 unless the data prefer
+    another clearly (BIC margin), no negative friction or damping, R and k_e as the paper reports."""
+    k_three = close = 0
+    for seed in range(100):
+        rng = np.random.default_rng(1000 + seed)
+        v, i, w = steady_measurements(paper_motor, PAPER_VOLTAGES_V, 300, rng)
+        fit = estimate(v, i, w)
+        p = fit.params
+        assert p.B >= 0 and p.T_f >= 0 and p.C_p >= 0, f"draw {seed}: {p}"
+        k_three += p.k == 3
+        close += abs(p.R_ohm / paper_motor.R_ohm - 1) < 0.02 and abs(p.k_e / paper_motor.k_e - 1) < 0.005
+    assert k_three >= 95
+    assert close >= 95

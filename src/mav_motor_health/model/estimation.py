@@ -20,7 +20,7 @@ steady-state means, as the paper compares averaged measurements with the model i
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -131,6 +131,7 @@ class FitResult:
     exponent_rmse_a: dict[float, float]
     forward_accuracy_pct: dict[str, float]
     points: OperatingPoints = field(repr=False)
+    exponent_bic: dict[float, float] = field(default_factory=dict)
 
     @property
     def stderr(self) -> dict[str, float]:
@@ -176,8 +177,12 @@ class FitResult:
                 lines.append(
                     f"    {name:6s} = {value: .5g} +/- {err:.3g} ({rel:.2g} %)  [{PARAMETER_UNITS[name]}]"
                 )
-        ks = ", ".join(f"k={k:g}: {v:.4g} A" for k, v in self.exponent_rmse_a.items())
-        lines.append(f"  exponent choice (current rmse): {ks}")
+        ks = ", ".join(
+            f"k={k:g}: {v:.4g} A" + (f" (BIC {self.exponent_bic[k]:.1f})" if k in self.exponent_bic else "")
+            for k, v in self.exponent_rmse_a.items()
+        )
+        lines.append(f"  exponent choice (current rmse, BIC): {ks}")
+        lines.append(f"  k = 3 unless another exponent lowers the BIC by {K_BIC_MARGIN:g} or more")
         lines.append(
             "  forward accuracy from voltage: "
             + ", ".join(f"{k} {v:.2f} %" for k, v in self.forward_accuracy_pct.items())
@@ -192,13 +197,22 @@ def _levenberg_marquardt(
     names: list[str],
     target: FloatArray,
     equation: str,
+    lower: FloatArray | None = None,
+    upper: FloatArray | None = None,
 ) -> EquationFit:
-    """Minimise eq. 8 (sum of squared residuals) with scipy's LM on parameters divided by ``scale``."""
+    """Minimise eq. 8 (sum of squared residuals) on parameters divided by ``scale``: scipy's
+    Levenberg–Marquardt, or with bounds its trust-region reflective counterpart (LM takes no bounds)."""
 
     def scaled(z: FloatArray) -> FloatArray:
         return residual(z * scale)
 
-    result = least_squares(scaled, x0 / scale, method="lm", x_scale="jac")
+    if lower is None and upper is None:
+        result = least_squares(scaled, x0 / scale, method="lm", x_scale="jac")
+    else:
+        lo = np.full(x0.size, -np.inf) if lower is None else lower / scale
+        hi = np.full(x0.size, np.inf) if upper is None else upper / scale
+        start = np.clip(x0 / scale, lo, hi)
+        result = least_squares(scaled, start, method="trf", bounds=(lo, hi), x_scale="jac")
     x = result.x * scale
     r = result.fun
     n, p = len(r), len(x)
@@ -257,12 +271,16 @@ def fit_mechanical(points: OperatingPoints, k_t: float, k: float | None) -> Equa
     scale = np.abs(lin0)
     scale[scale == 0] = 1.0 / col[scale == 0]
     scale = np.maximum(scale, 1e-3 / col)  # keeps tiny or zero starting values movable
+    # propeller load, viscous damping and friction are torques the motor must supply: none is negative
+    nonnegative = np.zeros(3)
     if k is not None:
 
         def residual(x: FloatArray) -> FloatArray:
             return (x[0] * w**k + x[1] * w + x[2]) / k_t - i
 
-        return _levenberg_marquardt(residual, lin0, scale, ["C_p", "B", "T_f"], i, "mechanical (eq. 10)")
+        return _levenberg_marquardt(
+            residual, lin0, scale, ["C_p", "B", "T_f"], i, "mechanical (eq. 10)", lower=nonnegative
+        )
 
     def residual_k(x: FloatArray) -> FloatArray:
         return (x[0] * w ** x[3] + x[1] * w + x[2]) / k_t - i
@@ -274,7 +292,24 @@ def fit_mechanical(points: OperatingPoints, k_t: float, k: float | None) -> Equa
         ["C_p", "B", "T_f", "k"],
         i,
         "mechanical (eq. 10)",
+        lower=np.append(nonnegative, K_RANGE[0]),
+        upper=np.append(np.full(3, np.inf), K_RANGE[1]),
     )
+
+
+#: another propeller exponent replaces the physical k = 3 only where its fit's BIC is lower by at least this
+#: (Kass & Raftery: a difference above 10 is "very strong" evidence); a hair of RMSE is not a reason
+K_BIC_MARGIN = 10.0
+#: the range a fitted real exponent may take
+K_RANGE = (0.5, 6.0)
+
+
+def choose_exponent(bic: Mapping[float, float], default: float = 3.0) -> float:
+    """The propeller exponent: ``default`` unless another candidate's BIC is lower by ``K_BIC_MARGIN``."""
+    best = min(bic, key=lambda kk: bic[kk])
+    if default not in bic:
+        return best
+    return best if bic[default] - bic[best] >= K_BIC_MARGIN else default
 
 
 def estimate(
@@ -315,13 +350,13 @@ def estimate(
     candidates = (float(k),) if k is not None else tuple(float(x) for x in exponents)
     fits = {kk: fit_mechanical(points, k_e, kk) for kk in candidates}
     exponent_rmse = {kk: f.rmse for kk, f in fits.items()}
-    best_k = min(fits, key=lambda kk: fits[kk].rmse)
+    best_k = choose_exponent({kk: f.bic for kk, f in fits.items()})
     mechanical = fit_mechanical(points, k_e, None) if fit_k and k is None else fits[best_k]
     values = mechanical.values
     params = MotorParams(
         R_ohm=R,
         k_e=k_e,
-        C_p=max(values["C_p"], 0.0),
+        C_p=values["C_p"],
         B=values["B"],
         T_f=values["T_f"],
         k=values.get("k", best_k),
@@ -339,6 +374,7 @@ def estimate(
         exponent_rmse_a=exponent_rmse,
         forward_accuracy_pct=forward_acc,
         points=points,
+        exponent_bic={kk: f.bic for kk, f in fits.items()},
     )
 
 

@@ -49,15 +49,13 @@ from scipy.optimize import lsq_linear, minimize_scalar
 from ..errors import FitError
 from ..telemetry.table import TelemetryTable
 from .dynamics import first_order_response
+from .estimation import K_BIC_MARGIN, choose_exponent
 from .params import MotorParams
 
-__all__ = ["CurrentReading", "EscMap", "Identification", "identify"]
+__all__ = ["K_BIC_MARGIN", "CurrentReading", "EscMap", "Identification", "identify"]
 
 FloatArray = NDArray[np.float64]
 
-#: another propeller exponent replaces k = 3 only where it lowers the BIC by this much (Kass & Raftery:
-#: a difference above 10 is "very strong" evidence)
-K_BIC_MARGIN = 10.0
 #: candidate propeller exponents
 K_CANDIDATES = (2.0, 2.5, 3.0, 3.5, 4.0)
 #: a motor whose R, k_e or C_p departs from the motors' median by more than this is reported
@@ -422,11 +420,7 @@ def identify(
         bic = n * math.log(max(sse / n, 1e-300)) + 4 * math.log(n)
         results[kk] = (x, err, bic)
     k_bic = {kk: r[2] for kk, r in results.items()}
-    chosen = k if k is not None else 3.0
-    if k is None:
-        best = min(k_bic, key=lambda kk: k_bic[kk])
-        if k_bic[3.0] - k_bic[best] >= K_BIC_MARGIN:
-            chosen = best
+    chosen = k if k is not None else choose_exponent(k_bic)
     x, err, _ = results[chosen]
     c_p, b, t_f, inertia = (float(v) for v in x)
     determined = {
