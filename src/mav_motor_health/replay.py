@@ -491,8 +491,14 @@ def replay_many(
     progress: TextIO | None = None,
     on_result: Callable[[ReplayResult], None] | None = None,
     calibrate_s: tuple[float, float] | None = None,
+    dask_scheduler: str | None = None,
 ) -> FleetResult:
-    """Replay many logs in worker processes: ``out_dir/<log name>/`` each, plus the fleet summary."""
+    """Replay many logs in worker processes: ``out_dir/<log name>/`` each, plus the fleet summary.
+
+    ``dask_scheduler`` (a dask.distributed scheduler address, ``tcp://HOST:8786``) maps the logs over that
+    cluster instead of local processes; its workers read the logs and write each log's folder, so both
+    paths must be the same on every worker (a shared filesystem). The fleet summary is written here.
+    """
     paths = [Path(p) for p in logs]
     out_dir = Path(out_dir)
     _check_out_dir(out_dir, force)
@@ -502,7 +508,13 @@ def replay_many(
     results: list[ReplayResult] = []
     bar = Progress(f"replay {len(paths)} logs", progress, delay_s=0.0)
     bar.update(0, len(paths))
-    if jobs == 1:
+    if dask_scheduler is not None:
+        for result in _replay_on_dask(dask_scheduler, paths, folders, params, profile, force, calibrate_s):
+            results.append(result)
+            if on_result:
+                on_result(result)
+            bar.update(len(results), len(paths), Path(result.log).name)
+    elif jobs == 1:
         for path, folder in zip(paths, folders):
             results.append(_replay_worker(str(path), str(folder), params, profile, force, calibrate_s))
             if on_result:
@@ -529,6 +541,51 @@ def replay_many(
     results.sort(key=lambda r: order[r.log])
     write_fleet_summary(out_dir, results)
     return FleetResult(str(out_dir), tuple(results))
+
+
+def _replay_on_dask(
+    scheduler: str,
+    paths: Sequence[Path],
+    folders: Sequence[Path],
+    params: MotorParams | dict[int, MotorParams],
+    profile: ThresholdProfile,
+    force: bool,
+    calibrate_s: tuple[float, float] | None,
+) -> Iterable[ReplayResult]:
+    """Each log's replay as one task on a dask.distributed cluster, results as they finish."""
+    try:
+        from distributed import Client
+        from distributed import as_completed as finished
+    except ImportError:
+        raise DataError(
+            "replay --dask needs dask.distributed: pip install 'mav-motor-health[fleet]'"
+        ) from None
+    with Client(scheduler, timeout=30) as client:
+        futures = {
+            client.submit(
+                _replay_worker,
+                str(p),
+                str(f),
+                params,
+                profile,
+                force,
+                calibrate_s,
+                pure=False,
+                key=f"replay-{f.name}",
+            ): (p, f)
+            for p, f in zip(paths, folders)
+        }
+        for future in finished(list(futures)):
+            try:
+                yield future.result()
+            except Exception as exc:  # the worker died or could not run the task
+                log, folder = futures[future]
+                yield _error_result(
+                    str(log),
+                    str(folder),
+                    f"dask worker failed ({type(exc).__name__}: {exc})",
+                    time.monotonic(),
+                )
 
 
 def write_fleet_summary(out_dir: Path, results: Sequence[ReplayResult]) -> None:

@@ -42,6 +42,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--jobs", type=positive_int, default=None, metavar="N", help="worker processes (default: CPU count)"
     )
     p.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        help="map the logs over a dask.distributed cluster (scheduler address, e.g. tcp://host:8786) instead "
+        "of local processes; the logs and --out must be at the same paths on every worker. Needs the "
+        "'fleet' extra",
+    )
+    p.add_argument(
         "--calibrate",
         type=_window,
         default=None,
@@ -65,7 +72,7 @@ def _window(text: str) -> tuple[float, float]:
 def run(args: argparse.Namespace) -> int:
     params, profile = load_motor_params(args.params), load_profile(args.profile)
     logs = collect_logs(args.logs)
-    if len(logs) == 1 and not any(Path(a).is_dir() for a in args.logs):
+    if len(logs) == 1 and not any(Path(a).is_dir() for a in args.logs) and not args.dask:
         result = replay_log(
             logs[0],
             args.out,
@@ -94,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
         progress=sys.stderr,
         on_result=show,
         calibrate_s=args.calibrate,
+        dask_scheduler=args.dask,
     )
     for result in fleet.results:
         if not result.error:
