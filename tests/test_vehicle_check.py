@@ -120,7 +120,7 @@ def test_the_message_says_how_far_off_and_what_to_do() -> None:
     check = _check()
     check.update(*_flight({m: 0.25 for m in range(1, 7)}))
     text = check.describe(VehicleFit.SPEED_OFF, "params/motors/paper_x2212.toml")
-    assert "75 % slower" in text and "--calibrate" in text and "UNCALIBRATED" in text
+    assert "75 % slower" in text and "fit LOG --out vehicle.toml" in text and "UNCALIBRATED" in text
 
 
 @pytest.mark.parametrize(

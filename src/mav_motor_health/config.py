@@ -17,7 +17,9 @@ from .diagnosis.plausibility import PlausibilityRule
 from .diagnosis.profile import PersistenceRule, SteadyRule, ThresholdProfile
 from .diagnosis.vehicle_check import VehicleCheckRule
 from .errors import ConfigError
+from .model.identify import CurrentReading, EscMap
 from .model.params import MotorParams
+from .model.vehicle import CURRENT_SIDES, VehicleParams
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -30,8 +32,10 @@ __all__ = [
     "PARAMS_DIR",
     "dump_motor_params",
     "dump_profile",
+    "dump_vehicle_params",
     "load_motor_params",
     "load_profile",
+    "load_vehicle_params",
     "read_toml",
     "resolve_params_file",
 ]
@@ -158,6 +162,8 @@ def load_motor_params(name_or_path: str | Path = DEFAULT_MOTOR) -> MotorParams:
     top = _Section(data, path, "")
     motor = top.table("motor")
     top.raw("source")  # free-form provenance, kept in the file only
+    for section in VEHICLE_SECTIONS:  # a vehicle file is a motor file too: load_vehicle_params reads these
+        top.raw(section)
     top.done()
     values = {
         "R_ohm": motor.number("R_ohm", minimum=1e-6, unit="ohm"),
@@ -398,4 +404,107 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
     lines += [f"{name} = {value!r}" for name, value in profile.plausibility.__dict__.items()]
     if source:
         lines += ["", "[source]"] + [f"{k} = {_toml_string(str(v))}" for k, v in source.items()]
+    return "\n".join(lines) + "\n"
+
+
+#: the sections a vehicle file adds to a motor file (``fit LOG --out``): see :func:`load_vehicle_params`
+VEHICLE_SECTIONS = ("esc", "current", "per_motor", "noise")
+#: the most motor outputs an autopilot drives (ArduPilot and PX4: 32)
+MAX_MOTOR_NUMBER = 32
+
+
+def load_vehicle_params(name_or_path: str | Path = DEFAULT_MOTOR) -> VehicleParams:
+    """A vehicle from a params TOML: the ``[motor]`` type (:func:`load_motor_params`) and, where the file
+    was written by identification (``fit LOG --out``), ``[esc]`` (the command → duty map), ``[current]``
+    (how the ESCs report current), ``[per_motor.N]`` (motor N's R and k_e) and ``[noise.N]`` (motor N's
+    balance residuals). A motor file without them gives a vehicle with no ESC map."""
+    path = resolve_params_file(name_or_path, "motors")
+    motor = load_motor_params(path)
+    data = read_toml(path)
+    top = _Section(data, path, "")
+    esc: EscMap | None = None
+    if "esc" in data:
+        section = top.table("esc")
+        esc = EscMap(idle_offset=section.number("idle_offset", minimum=-0.1, maximum=0.5, unit="(command)"))
+        section.done()
+    current: CurrentReading | None = None
+    if "current" in data:
+        section = top.table("current")
+        side = section.text("side", "input")
+        if side not in CURRENT_SIDES:
+            raise ConfigError(
+                f"{side!r}", path=path, key="current.side", expected=f"one of {', '.join(CURRENT_SIDES)}"
+            )
+        current = CurrentReading(
+            side=side,
+            gain=section.number("gain", 1.0, minimum=0.01, maximum=100.0),
+            gain_from=section.text("gain_from", "assumed"),
+            offset_a=section.number("battery_offset_a", 0.0, unit="A"),
+        )
+        section.done()
+    per_motor: dict[int, MotorParams] = {}
+    for number, section in _motor_tables(top, "per_motor", path):
+        values = {
+            "R_ohm": section.number("R_ohm", motor.R_ohm, minimum=1e-6, unit="ohm"),
+            "k_e": section.number("k_e", motor.k_e, minimum=1e-7, unit="V*s/rad"),
+        }
+        section.done()
+        per_motor[number] = motor.replace(**values, name=f"{motor.name}, motor {number}")
+    noise: dict[int, dict[str, float]] = {}
+    for number, section in _motor_tables(top, "noise", path):
+        noise[number] = {
+            key: section.number(key, minimum=0.0, unit=unit)
+            for key, unit in (("voltage_v", "V"), ("torque_nm", "N*m"))
+            if key in section.data
+        }
+        section.done()
+    raw_source = data.get("source", {})
+    source = {str(k): str(v) for k, v in raw_source.items()} if isinstance(raw_source, Mapping) else {}
+    return VehicleParams(
+        motor=motor, per_motor=per_motor, esc=esc, current=current, noise=noise, source=source
+    )
+
+
+def _motor_tables(top: _Section, name: str, path: Path) -> list[tuple[int, _Section]]:
+    """``[name.N]`` tables keyed by motor number N (1..32)."""
+    section = top.table(name)
+    out = []
+    for key in list(section.data):
+        if not (str(key).isdigit() and 1 <= int(key) <= MAX_MOTOR_NUMBER):
+            raise ConfigError(
+                f"{key!r}", path=path, key=f"{name}.{key}", expected=f"a motor number 1..{MAX_MOTOR_NUMBER}"
+            )
+        out.append((int(key), section.table(str(key))))
+    section.done()
+    return out
+
+
+def dump_vehicle_params(vehicle: VehicleParams, source: Mapping[str, str] | None = None) -> str:
+    """TOML text for a vehicle that :func:`load_vehicle_params` reads back exactly."""
+    lines = [dump_motor_params(vehicle.motor).rstrip("\n")]
+    if vehicle.esc is not None:
+        lines += [
+            "",
+            "[esc]  # duty = clip((command - idle_offset) / (1 - idle_offset), 0, 1), command 0..1",
+            f"idle_offset = {float(vehicle.esc.idle_offset)!r}",
+        ]
+    if vehicle.current is not None:
+        c = vehicle.current
+        lines += [
+            "",
+            "[current]  # side: input (battery side, duty x motor current) | motor (phase) | unusable",
+            f"side = {_toml_string(c.side)}",
+            f"gain = {float(c.gain)!r}  # reading / true current",
+            f"gain_from = {_toml_string(c.gain_from)}",
+            f"battery_offset_a = {float(c.offset_a)!r}  # the rest of the vehicle's draw",
+        ]
+    for number, params in sorted(vehicle.per_motor.items()):
+        lines += ["", f"[per_motor.{number}]", f"R_ohm = {params.R_ohm!r}", f"k_e = {params.k_e!r}"]
+    for number, values in sorted(vehicle.noise.items()):
+        finite = {k: v for k, v in values.items() if math.isfinite(v)}
+        if finite:
+            lines += ["", f"[noise.{number}]"] + [f"{k} = {float(v)!r}" for k, v in finite.items()]
+    merged = {**vehicle.source, **(source or {})}
+    if merged:
+        lines += ["", "[source]"] + [f"{k} = {_toml_string(str(v))}" for k, v in merged.items()]
     return "\n".join(lines) + "\n"

@@ -36,6 +36,7 @@ from .diagnosis.states import MotorState
 from .diagnosis.vehicle_check import VehicleFit, describe_vehicle_fit
 from .errors import DataError, MotorHealthError
 from .model.params import MotorParams
+from .model.vehicle import VehicleParams
 from .telemetry.table import TelemetryTable
 
 __all__ = [
@@ -339,7 +340,7 @@ def vehicle_note(meta: Mapping[str, Any], params: MotorParams | dict[int, MotorP
 def replay_log(
     log: str | Path,
     out_dir: str | Path,
-    params: MotorParams | dict[int, MotorParams],
+    params: MotorParams | dict[int, MotorParams] | VehicleParams,
     profile: ThresholdProfile,
     *,
     force: bool = False,
@@ -371,6 +372,9 @@ def replay_log(
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if len(table) == 0:
         raise DataError("the log's ESC telemetry has no samples for any motor", path=log)
+    if isinstance(params, VehicleParams):  # the vehicle's ESC map and current sensing, then its motors
+        table = params.calibrate(table)
+        params = params.models(range(1, max(table.motors()) + 1))
     if calibrate_s is not None:
         from .diagnosis.calibration import calibrate
 
@@ -429,7 +433,7 @@ def replay_log(
 def _replay_worker(
     log: str,
     out_dir: str,
-    params: MotorParams | dict[int, MotorParams],
+    params: MotorParams | dict[int, MotorParams] | VehicleParams,
     profile: ThresholdProfile,
     force: bool,
     calibrate_s: tuple[float, float] | None = None,
@@ -483,7 +487,7 @@ def _folder_names(logs: Sequence[Path]) -> list[str]:
 def replay_many(
     logs: Sequence[str | Path],
     out_dir: str | Path,
-    params: MotorParams | dict[int, MotorParams],
+    params: MotorParams | dict[int, MotorParams] | VehicleParams,
     profile: ThresholdProfile,
     *,
     force: bool = False,
@@ -547,7 +551,7 @@ def _replay_on_dask(
     scheduler: str,
     paths: Sequence[Path],
     folders: Sequence[Path],
-    params: MotorParams | dict[int, MotorParams],
+    params: MotorParams | dict[int, MotorParams] | VehicleParams,
     profile: ThresholdProfile,
     force: bool,
     calibrate_s: tuple[float, float] | None,

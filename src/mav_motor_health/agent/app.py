@@ -76,7 +76,14 @@ class Agent:
         )
         self.tlog = self.link.url.kind == "tlog"
         self.assembler = SampleAssembler(config.motors)
-        self.monitor = HealthMonitor(config.params, config.profile, config.motors, config.stale_s)
+        self.monitor = HealthMonitor(
+            config.params,
+            config.profile,
+            config.motors,
+            config.stale_s,
+            esc=config.esc,
+            current=config.current,
+        )
         self.tracker = AutopilotTracker(config.heartbeat_timeout_s)
         p = config.publish
         self.gate = StatustextGate(burst=p.statustext_burst, interval_s=p.statustext_interval_s)

@@ -12,9 +12,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from ..config import DEFAULT_MOTOR, _Section, load_motor_params, load_profile, read_toml
+from ..config import DEFAULT_MOTOR, _Section, load_motor_params, load_profile, load_vehicle_params, read_toml
 from ..diagnosis.profile import ThresholdProfile
 from ..errors import ConfigError, LinkError
+from ..model.identify import CurrentReading, EscMap
 from ..model.params import MotorParams
 from ..publish.mqtt import MqttSettings, parse_mqtt_url
 from .link import parse_url
@@ -46,6 +47,9 @@ class AgentConfig:
     motors: int = 6
     params: MotorParams | dict[int, MotorParams] = field(default_factory=lambda: load_motor_params())
     params_name: str = DEFAULT_MOTOR
+    #: the vehicle's ESC map and current reading, where the params file was written by identification
+    esc: EscMap | None = None
+    current: CurrentReading | None = None
     profile: ThresholdProfile = field(default_factory=lambda: load_profile("flight"))
     system_id: int = 0  # 0: take the autopilot's once it is found
     component_id: int = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
@@ -113,7 +117,8 @@ def load_agent_config(
     params_name = params or file_params
     profile_name = profile or file_profile
     per_motor = model.table("motor")
-    motor_params: MotorParams | dict[int, MotorParams] = load_motor_params(_resolve(params_name, base))
+    vehicle = load_vehicle_params(_resolve(params_name, base))
+    motor_params: MotorParams | dict[int, MotorParams] = vehicle.models(range(1, motors + 1))
     overrides = {}
     for key in list(per_motor.data):
         if not key.isdigit() or not 1 <= int(key) <= motors:
@@ -122,8 +127,10 @@ def load_agent_config(
     per_motor.done()
     if overrides:
         default = motor_params
-        assert isinstance(default, MotorParams)
-        motor_params = {n: overrides.get(n, default) for n in range(1, motors + 1)}
+        motor_params = {
+            n: overrides.get(n, default if isinstance(default, MotorParams) else default[n])
+            for n in range(1, motors + 1)
+        }
     the_profile = load_profile(_resolve(profile_name, base))
     model.done()
 
@@ -151,6 +158,8 @@ def load_agent_config(
         motors=motors,
         params=motor_params,
         params_name=Path(params_name).stem,
+        esc=vehicle.esc,
+        current=vehicle.current,
         profile=the_profile,
         system_id=system_id,
         component_id=component_id,

@@ -22,7 +22,9 @@ from ..diagnosis.plausibility import CurrentSumCheck, SensorIssue
 from ..diagnosis.profile import ThresholdProfile
 from ..diagnosis.states import MotorState
 from ..diagnosis.vehicle_check import VehicleFit
+from ..model.identify import CurrentReading, EscMap
 from ..model.params import MotorParams
+from ..model.vehicle import calibrate_columns
 from .samples import MotorSample
 
 __all__ = ["HealthMonitor", "MotorStatus", "StateChange"]
@@ -63,8 +65,12 @@ class HealthMonitor:
         profile: ThresholdProfile,
         motors: int = 6,
         stale_s: float = 1.0,
+        esc: EscMap | None = None,
+        current: CurrentReading | None = None,
     ) -> None:
         self.diagnoser = StreamingDiagnoser(params, profile, range(1, motors + 1))
+        # the vehicle's ESC map and current sensing (identification), applied as replay applies them
+        self.esc, self.current = esc, current
         # the ESC currents' sum against the battery monitor, across motors, as replay checks it
         self.current_sum = CurrentSumCheck(profile.plausibility, range(1, motors + 1))
         self.stale_s = stale_s
@@ -86,10 +92,18 @@ class HealthMonitor:
         for sample in samples:
             if sample.motor not in self.status:
                 raise KeyError(f"motor {sample.motor} is not one of 1..{len(self.status)}")
+        sensed = calibrate_columns(
+            {
+                name: np.array([getattr(s, name) for s in samples], dtype=float)
+                for name in ("throttle", "bus_voltage_v", "esc_current_a")
+            },
+            self.esc,
+            self.current,
+        )
         mismatch = self.current_sum.update(
             [s.time_s for s in samples],
             [s.motor for s in samples],
-            [s.esc_current_a for s in samples],
+            sensed["esc_current_a"],
             [s.battery_current_a for s in samples],
         )
         for sample, bad in zip(samples, mismatch.tolist()):
@@ -110,6 +124,7 @@ class HealthMonitor:
                     "esc_temp_c",
                 )
             }
+            arrays = calibrate_columns(arrays, self.esc, self.current)
             results[motor] = self.diagnoser.update_many(
                 motor,
                 arrays["time_s"],

@@ -20,7 +20,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Two-step Levenberg-Marquardt estimate of R, k_e (eq. 9) and C_p, B, T_f, "
         "k (eq. 10) from measured voltage, current and speed.",
     )
-    p.add_argument("data", help="telemetry file (CSV; flight logs where supported)")
+    p.add_argument(
+        "data",
+        nargs="+",
+        help="a test stand's steady steps (CSV, bench file), or one or more healthy flight logs of one vehicle "
+        "(.tlog, .bin, .log, .ulg, or a flight CSV): those are identified as a vehicle (motor, ESC map, "
+        "current reading, inertia) from every sample",
+    )
+    p.add_argument(
+        "--mode",
+        choices=("auto", "flight", "bench"),
+        default="auto",
+        help="flight: identify a vehicle from flight logs; bench: the two-step fit of steady points; auto "
+        "(default): flight for log formats and for a CSV with command, bus voltage and several motors",
+    )
+    p.add_argument(
+        "--prior",
+        metavar="FILE",
+        help="flight mode: a motor params TOML (a bench fit, a bundled motor) for what the flight cannot "
+        "determine (default: a weak prior from the flight itself)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     p.add_argument("--out", metavar="FILE", help="write the fitted motor as a params TOML")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
@@ -75,6 +94,14 @@ def fit_table(
 
 
 def run(args: argparse.Namespace) -> int:
+    logs = list(args.data)
+    if args.mode == "flight" or (args.mode == "auto" and _looks_like_flight(logs[0])):
+        return run_flight(args, logs)
+    if len(logs) > 1:
+        raise DataError(
+            f"the bench fit takes one file, got {len(logs)}; give one file, or --mode flight for flight logs"
+        )
+    args.data = logs[0]
     for target in (args.out, args.plot):
         if target and Path(target).exists() and not args.force:  # fail before the work, not after
             raise DataError("exists already; not overwritten (use --force to replace it)", path=target)
@@ -133,4 +160,52 @@ def run(args: argparse.Namespace) -> int:
         path = write_new_file(args.out, dump_motor_params(params, source), force=args.force)
         if not args.json:
             print(f"wrote {path}")
+    return 0
+
+
+def _looks_like_flight(path: str) -> bool:
+    from ..identification import FLIGHT_LOG_SUFFIXES, is_flight_table
+
+    suffix = Path(path).suffix.lower()
+    return suffix in FLIGHT_LOG_SUFFIXES or is_flight_table(read_telemetry(path), suffix)
+
+
+def run_flight(args: argparse.Namespace, logs: list[str]) -> int:
+    """Identify the vehicle from its flight logs; print the report; write the vehicle file with --out."""
+    from ..config import dump_vehicle_params
+    from ..identification import identify_logs
+
+    if args.with_effects or args.motor or args.fit_k:
+        raise DataError("--with, --motor and --fit-k belong to the bench fit (--mode bench)")
+    result = identify_logs(logs, prior=args.prior, k=args.k)
+    if args.json:
+        f = result.found
+        print(
+            json.dumps(
+                {
+                    "params": result.vehicle.motor.to_dict(),
+                    "esc": {"idle_offset": f.esc.idle_offset},
+                    "current": {
+                        "side": f.current.side,
+                        "gain": f.current.gain,
+                        "gain_from": f.current.gain_from,
+                    },
+                    "stderr": dict(f.stderr),
+                    "determined_by": dict(f.determined_by),
+                    "k_bic": {str(k): v for k, v in f.k_bic.items()},
+                    "deviations": {str(m): dict(d) for m, d in f.deviations.items()},
+                    "noise": {str(m): dict(d) for m, d in f.noise.items()},
+                    "findings": list(f.findings),
+                    "logs": list(result.logs),
+                },
+                indent=2,
+                allow_nan=True,
+            )
+        )
+    else:
+        print(result.report())
+    if args.out:
+        path = write_new_file(args.out, dump_vehicle_params(result.vehicle), force=args.force)
+        if not args.json:
+            print(f"wrote {path}: replay LOG --params {path}  (or the agent's [model] params)")
     return 0

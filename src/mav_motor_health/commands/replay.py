@@ -8,7 +8,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from ..config import DEFAULT_MOTOR, load_motor_params, load_profile
+from ..config import DEFAULT_MOTOR, load_profile, load_vehicle_params
 from ..replay import ReplayResult, collect_logs, print_verdicts, replay_log, replay_many
 from ._common import positive_int
 
@@ -26,9 +26,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("logs", nargs="+", metavar="LOG", help="log files or folders (searched recursively)")
     p.add_argument(
         "--params",
-        default=DEFAULT_MOTOR,
+        default=None,
         metavar="FILE",
-        help=f"motor parameters TOML, or a name in params/motors (default {DEFAULT_MOTOR})",
+        help="the vehicle: a params TOML written by `fit LOG --out` (motor, ESC map, current reading, "
+        f"per-motor models), a motor TOML, or a name in params/motors (default {DEFAULT_MOTOR})",
     )
     p.add_argument(
         "--profile",
@@ -70,7 +71,14 @@ def _window(text: str) -> tuple[float, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    params, profile = load_motor_params(args.params), load_profile(args.profile)
+    vehicle, profile = load_vehicle_params(args.params or DEFAULT_MOTOR), load_profile(args.profile)
+    if args.params and profile.steady.kind == "balance":
+        for missing in vehicle.missing_for_flight():  # said once for the run, not once per log
+            warnings.warn(
+                f"{args.params}: no {missing}; identify the vehicle with `fit LOG --out vehicle.toml`",
+                stacklevel=1,
+            )
+    params = vehicle
     logs = collect_logs(args.logs)
     if len(logs) == 1 and not any(Path(a).is_dir() for a in args.logs) and not args.dask:
         result = replay_log(

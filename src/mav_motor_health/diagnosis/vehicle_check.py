@@ -235,8 +235,8 @@ def describe_vehicle_fit(
     how = f"{abs(100 * median):.0f} % {'faster' if median > 0 else 'slower'}"
     return (
         f"{model_name} does not describe this vehicle: its motors turn {how} than it predicts (median "
-        f"of {len(values)}), so no fault is named (UNCALIBRATED). Fit a model on a healthy flight of this "
-        "vehicle (replay LOG --calibrate START:END, or fit) and give it with --params"
+        f"of {len(values)}), so no fault is named (UNCALIBRATED). Identify this vehicle from a healthy flight "
+        "(fit LOG --out vehicle.toml) and give it with --params vehicle.toml"
     )
 
 

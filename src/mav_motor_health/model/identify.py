@@ -64,6 +64,16 @@ SIBLING_DEPARTURE = 0.15
 MIN_COMMAND = 0.05
 #: the prior's width for B·ω and T_f: this share of the load torque at the flight's median speed
 PRIOR_SHARE = 0.02
+#: the balances' bins span at least this many pairing intervals of the log (dimensionless)
+PAIRING_BINS = 4.0
+#: an idle offset less certain than this (of the command range) is not taken from the data
+IDLE_OFFSET_STDERR_MAX = 0.005
+#: ESC-sum / battery-monitor ratios a current sensor's gain can explain (AM32 reads ~0.78; the real PX4
+#: quad in shared/real_logs 0.54); outside them the comparison itself is not trusted
+BATTERY_GAIN_RANGE = (0.3, 3.0)
+#: the speed range (95th over 5th percentile) a flight must span before its data may choose k: over a
+#: narrower range ω^k and a linear term are too alike for any k to be told from 3
+K_SPEED_SPAN = 1.6
 #: time constant of the mechanical balance's low-pass [s]
 MECHANICAL_TAU_S = 0.3
 
@@ -138,7 +148,12 @@ class Identification:
             lines.append(
                 f"  motor {motor}: "
                 + ", ".join(f"{k} {100 * v:+.1f} %" for k, v in dev.items())
-                + (f"; balance noise {noise.get('voltage_v', math.nan):.3g} V" if noise else "")
+                + (
+                    f"; balance noise {noise.get('voltage_v', math.nan):.3g} V, "
+                    f"{noise.get('torque_nm', math.nan):.3g} N*m"
+                    if noise
+                    else ""
+                )
             )
         lines += [f"finding: {f}" for f in self.findings]
         return "\n".join(lines)
@@ -251,6 +266,16 @@ def _electrical_fit(
     return coef, stderr, resid
 
 
+def _ke_given_r(terms: _ElectricalTerms, c0: float, side: str, r_ohm: float) -> float:
+    """k_e with R fixed (the prior's), where the current cannot part the two: the same balance, one
+    unknown."""
+    y, x_ke, x_r, duty = terms.rows(c0, side)
+    good = (duty > 0.02) & np.isfinite(y) & np.isfinite(x_ke) & np.isfinite(x_r)
+    rest = y[good] - r_ohm * x_r[good]
+    denominator = float(np.sum(x_ke[good] ** 2))
+    return max(float(np.sum(rest * x_ke[good]) / denominator), 1e-7) if denominator > 0 else math.nan
+
+
 def _usable_current(terms: _ElectricalTerms) -> bool:
     """A reading that follows the load: not constant, not zero, and rising with the speed."""
     s, w = terms.s, terms.w
@@ -260,8 +285,10 @@ def _usable_current(terms: _ElectricalTerms) -> bool:
     return bool(np.isfinite(r) and r > 0.3)
 
 
-def _pooled_electrical(terms: Mapping[int, _ElectricalTerms], side: str) -> tuple[float, float]:
-    """The idle offset c₀ that minimises the pooled residual, and that residual's RMS [V]."""
+def _pooled_electrical(terms: Mapping[int, _ElectricalTerms], side: str) -> tuple[float, float, float]:
+    """The idle offset c₀ that minimises the pooled residual, that residual's RMS [V], and c₀'s standard
+    error (from the cost's curvature: var = 2·σ²/(n·cost''))."""
+    count = [0]
 
     def cost(c0: float) -> float:
         total, n = 0.0, 0
@@ -270,6 +297,7 @@ def _pooled_electrical(terms: Mapping[int, _ElectricalTerms], side: str) -> tupl
             good = np.isfinite(resid)
             total += float(np.sum(resid[good] ** 2))
             n += int(good.sum())
+        count[0] = n
         return total / max(n, 1)
 
     grid = np.linspace(-0.05, 0.3, 36)
@@ -278,7 +306,13 @@ def _pooled_electrical(terms: Mapping[int, _ElectricalTerms], side: str) -> tupl
     lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
     found = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-5})
     c0 = float(found.x) if found.fun <= costs[best] else float(grid[best])
-    return c0, math.sqrt(cost(c0))
+    at = cost(c0)
+    h = 0.005
+    curvature = (cost(c0 + h) - 2 * at + cost(c0 - h)) / h**2
+    n = max(count[0], 1)
+    stderr = math.sqrt(2 * at / (n * curvature)) if curvature > 0 else math.inf
+    on_edge = c0 <= grid[0] + 1e-3 or c0 >= grid[-1] - 1e-3
+    return c0, math.sqrt(at), math.inf if on_edge else stderr
 
 
 def _battery_gain(
@@ -371,37 +405,69 @@ def identify(
     k: float | None = None,
     name: str = "identified motor",
 ) -> Identification:
-    """Identify the vehicle in ``table`` (a healthy flight); ``prior`` fills what the data cannot say."""
+    """Identify the vehicle in ``table`` (a healthy flight); ``prior`` fills what the data cannot say.
+
+    The balances' time bins are at least :data:`PAIRING_BINS` times the log's pairing of ESC samples
+    with commands (``pairing_s`` in the table's meta, where the reader measured it), so that a command
+    paired a report interval away averages out within a bin."""
+    pairing_s = float(table.meta.get("pairing_s") or 0.0)
+    bin_s = max(bin_s, PAIRING_BINS * pairing_s) if math.isfinite(pairing_s) else bin_s
     data = _motor_data(table, bin_s)
     terms = {m.motor: _ElectricalTerms.of(m) for m in data}
     usable = {motor: _usable_current(t) for motor, t in terms.items()}
     findings: list[str] = []
+    c0_stderr = math.inf
     if sum(usable.values()) >= max(1, len(usable) // 2 + 1):
         with_current = {mo: t for mo, t in terms.items() if usable[mo]}
         fits = {side: _pooled_electrical(with_current, side) for side in ("input", "motor")}
         side = min(fits, key=lambda s: fits[s][1])
-        c0, _ = fits[side]
+        c0, _, c0_stderr = fits[side]
         residual_v = {s: fits[s][1] for s in fits}
     else:
         side, residual_v = "unusable", {}
         c0 = _speed_only_offset(data, prior)
         findings.append("the ESCs report no usable current: R is the prior's, the current is not judged")
+    offset_from = "data"
+    if side != "unusable" and not c0_stderr <= IDLE_OFFSET_STDERR_MAX:
+        c0, offset_from = 0.0, "prior"
+        findings.append(
+            "the flight does not determine the ESC's idle offset (the commands moved too little at a "
+            "steady battery voltage): taken as 0, the autopilot's PWM range; fly climbs, descents and yaw"
+        )
     esc = EscMap(idle_offset=c0)
     per_motor_e: dict[int, tuple[float, float]] = {}
     per_motor_err: dict[int, tuple[float, float]] = {}
+    noise: dict[int, dict[str, float]] = {}
     for m in data:
         if side != "unusable" and usable.get(m.motor):
-            coef, err_e, _ = _electrical_fit(terms[m.motor], c0, side)
-            per_motor_e[m.motor] = (float(coef[0]), float(coef[1]))
+            coef, err_e, resid = _electrical_fit(terms[m.motor], c0, side)
+            # R at its bound says the current did not part R from k_e here: not a zero resistance
+            r_fit = float(coef[1]) if coef[1] > 1e-9 else math.nan
+            k_e_fit = (
+                float(coef[0]) if math.isfinite(r_fit) else _ke_given_r(terms[m.motor], c0, side, prior.R_ohm)
+            )
+            per_motor_e[m.motor] = (k_e_fit, r_fit)
             per_motor_err[m.motor] = (float(err_e[0]), float(err_e[1]))
+            noise[m.motor] = {"voltage_v": _rms(resid)}
         else:
             per_motor_e[m.motor] = (_speed_only_ke(m, esc, prior), math.nan)
             per_motor_err[m.motor] = (math.nan, math.nan)
+            noise[m.motor] = {}
     gain_fit = _battery_gain(data, table, side, esc) if side != "unusable" else None
+    if gain_fit is not None and not BATTERY_GAIN_RANGE[0] <= gain_fit[0] <= BATTERY_GAIN_RANGE[1]:
+        findings.append(
+            f"the ESCs' summed current is {gain_fit[0]:.2f} x the battery monitor's: too far off to be a "
+            "sensor's gain (a monitor that does not see the ESCs, or loose pairing); gain taken as 1"
+        )
+        gain_fit = None
     gain, offset, gain_from = (1.0, 0.0, "assumed") if gain_fit is None else (*gain_fit, "battery")
     k_e_type = float(np.median([v[0] for v in per_motor_e.values()]))
     r_values = [v[1] * gain for v in per_motor_e.values() if math.isfinite(v[1])]
     r_type = float(np.median(r_values)) if r_values else prior.R_ohm
+    if not r_values and side != "unusable":
+        findings.append(
+            "the current did not part R from k_e (R at its bound on every motor): R is the prior's"
+        )
     # mechanical: each candidate k over all motors with their own electrical constants
     motors_r = {mo: (v[1] * gain if math.isfinite(v[1]) else r_type) for mo, v in per_motor_e.items()}
     w_typ = float(np.median(np.concatenate([m.omega for m in data])))
@@ -420,10 +486,25 @@ def identify(
         bic = n * math.log(max(sse / n, 1e-300)) + 4 * math.log(n)
         results[kk] = (x, err, bic)
     k_bic = {kk: r[2] for kk, r in results.items()}
-    chosen = k if k is not None else choose_exponent(k_bic)
+    w_all = np.concatenate([m.omega for m in data])
+    span = float(np.percentile(w_all, 95) / max(np.percentile(w_all, 5), 1e-9))
+    if k is not None:
+        chosen = k
+    elif span < K_SPEED_SPAN:
+        chosen = 3.0
+        findings.append(
+            f"the motors turned over too narrow a range (95th/5th percentile of speed {span:.2f} < "
+            f"{K_SPEED_SPAN:g}) to tell the propeller exponent: k = 3, the paper's"
+        )
+    else:
+        chosen = choose_exponent(k_bic)
     x, err, _ = results[chosen]
+    for m in data:  # each motor's mechanical balance residual under the shared fit: its noise floor
+        a, y = _mechanical_rows(m, esc, per_motor_e[m.motor][0], motors_r[m.motor], chosen, MECHANICAL_TAU_S)
+        noise[m.motor]["torque_nm"] = _rms(y - a @ x)
     c_p, b, t_f, inertia = (float(v) for v in x)
     determined = {
+        "idle_offset": offset_from,
         "R_ohm": "data"
         if r_values and gain_from == "battery"
         else ("prior" if not r_values else "data (x current gain)"),
@@ -475,11 +556,16 @@ def identify(
         determined_by=determined,
         k_bic=k_bic,
         deviations=deviations,
-        noise={},
+        noise=noise,
         samples=int(sum(m.time_s.size for m in data)),
         span_s=(float(t_all.min()), float(t_all.max())),
         findings=tuple(findings),
     )
+
+
+def _rms(values: FloatArray) -> float:
+    good = np.isfinite(values)
+    return float(np.sqrt(np.mean(values[good] ** 2))) if good.any() else math.nan
 
 
 def _median_stderr(values: Sequence[float]) -> float:

@@ -1,0 +1,145 @@
+"""Identify a vehicle from its own flight logs: the shell around :func:`.model.identify.identify`.
+
+``fit LOG... --out vehicle.toml`` calls :func:`identify_logs`: every log is read by the one telemetry
+reader, the logs are laid one after another on one time axis (a gap between them, so no balance or
+low-pass reaches across two flights), and the vehicle is identified from all their samples. With no
+prior given, the bundled motor serves as the first prior only to set scales; identification then runs
+again with its own first result as the prior, so that what the data cannot say (a hover-only flight says
+little about B vs T_f) is pulled toward this vehicle's motor, not toward the paper's.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .config import DEFAULT_MOTOR, load_motor_params
+from .errors import DataError, FitError
+from .model.identify import Identification, identify
+from .model.params import MotorParams
+from .model.vehicle import VehicleParams
+from .telemetry import sources
+from .telemetry.table import TelemetryTable
+
+__all__ = [
+    "FLIGHT_LOG_SUFFIXES",
+    "IdentifiedVehicle",
+    "identify_logs",
+    "is_flight_table",
+    "join_flights",
+    "provenance",
+]
+
+#: formats that always hold flights (a CSV may hold a flight or a test stand's steps)
+FLIGHT_LOG_SUFFIXES = (".tlog", ".bin", ".log", ".ulg")
+#: the gap laid between two logs on the joined time axis [s]
+GAP_BETWEEN_LOGS_S = 60.0
+
+
+@dataclass(frozen=True)
+class IdentifiedVehicle:
+    """The vehicle found, the identification behind it, and what it was found from."""
+
+    vehicle: VehicleParams
+    found: Identification
+    logs: tuple[str, ...]
+    prior: str
+
+    def report(self) -> str:
+        head = [
+            f"[[Identification from flight]]  {len(self.logs)} log(s): {', '.join(self.logs)}",
+            f"prior: {self.prior}",
+        ]
+        return "\n".join([*head, self.found.report()])
+
+
+def provenance(found: Identification, logs: Sequence[str], prior: str) -> dict[str, str]:
+    """What the params file's ``[source]`` says of an identification."""
+    return {
+        "identified_from": ", ".join(logs),
+        "span_s": f"{found.span_s[0]:.2f}-{found.span_s[1]:.2f}",
+        "samples": str(found.samples),
+        "prior": prior,
+        "determined_by": ", ".join(f"{k}: {v}" for k, v in found.determined_by.items()),
+        "k_bic": ", ".join(f"k={k:g}: {b:.1f}" for k, b in sorted(found.k_bic.items())),
+        **{f"finding_{i + 1}": text for i, text in enumerate(found.findings)},
+    }
+
+
+def is_flight_table(table: TelemetryTable, suffix: str) -> bool:
+    """A flight (identify it) rather than a test stand's steady steps (the bench fit): a flight-log
+    format, or a table with the command and the bus voltage of more than one motor over 20 s or more."""
+    if suffix.lower() in FLIGHT_LOG_SUFFIXES:
+        return True
+    if "throttle" not in table or "bus_voltage_v" not in table or len(table.motors()) < 2:
+        return False
+    t = table["time_s"]
+    return bool(np.isfinite(t).any() and np.nanmax(t) - np.nanmin(t) >= 20.0)
+
+
+def join_flights(tables: Sequence[TelemetryTable]) -> TelemetryTable:
+    """Several flights on one time axis, each after the one before with a gap between."""
+    if len(tables) == 1:
+        return tables[0]
+    shifted: list[TelemetryTable] = []
+    end = 0.0
+    for table in tables:
+        t = np.asarray(table["time_s"], dtype=float)
+        start = float(np.nanmin(t)) if np.isfinite(t).any() else 0.0
+        offset = end - start + (GAP_BETWEEN_LOGS_S if shifted else 0.0)
+        shifted.append(table.with_columns(time_s=t + offset))
+        end = float(np.nanmax(t)) + offset if np.isfinite(t).any() else end
+    common = set.intersection(*(set(tb.names) for tb in shifted))
+    return TelemetryTable.concat(
+        TelemetryTable({k: v for k, v in tb.columns.items() if k in common}, source=tb.source)
+        for tb in shifted
+    )
+
+
+def identify_logs(
+    logs: Sequence[str | Path],
+    *,
+    prior: str | Path | None = None,
+    k: float | None = None,
+    name: str | None = None,
+) -> IdentifiedVehicle:
+    """Identify the vehicle flown in ``logs`` (healthy flights of one vehicle)."""
+    if not logs:
+        raise DataError("no log given; expected one or more flight logs")
+    tables = [sources.read(log) for log in logs]
+    for log, table in zip(logs, tables):
+        if not len(table):
+            raise DataError("no ESC samples to identify from", path=log)
+    joined = join_flights(tables)
+    label = name or f"identified from {Path(logs[0]).name}" + (
+        f" and {len(logs) - 1} more" if len(logs) > 1 else ""
+    )
+    if prior is not None:
+        prior_params = load_motor_params(prior)
+        found = identify(joined, prior_params, k=k, name=label)
+        prior_text = f"{prior} (given)"
+    else:
+        # first pass: the bundled motor sets only the scales; second: this vehicle's own first estimate
+        first = identify(joined, load_motor_params(DEFAULT_MOTOR), k=k, name=label)
+        found = identify(joined, _as_prior(first.params), k=k, name=label)
+        prior_text = "weak: the vehicle's own first estimate (no --prior given)"
+    paths = tuple(str(p) for p in logs)
+    return IdentifiedVehicle(
+        vehicle=VehicleParams.identified(found, provenance(found, paths, prior_text)),
+        found=found,
+        logs=paths,
+        prior=prior_text,
+    )
+
+
+def _as_prior(params: MotorParams) -> MotorParams:
+    """A first estimate as a prior: it must be a valid motor (positive C_p to set the load's scale)."""
+    if params.C_p > 0 and math.isfinite(params.C_p):
+        return params
+    raise FitError(
+        "identification found no propeller load (C_p = 0): is the log a flight with motors turning?"
+    )
