@@ -101,3 +101,46 @@ def test_the_replay_reader_and_the_agent_see_the_same_samples(flight):
         np.testing.assert_allclose(
             [r["current_a"] for r in live], ref["current_a"], rtol=1e-12, equal_nan=True
         )
+
+
+def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor, tmp_path):
+    """The ESC map and the current sensor's gain of a vehicle file: the agent calibrates each batch with
+    the same function replay calibrates the whole table with, and announces what replay announces."""
+    from mav_motor_health.config import dump_vehicle_params, load_profile, load_vehicle_params
+    from mav_motor_health.model.identify import CurrentReading, EscMap
+    from mav_motor_health.model.vehicle import VehicleParams
+
+    fields, path = flight
+    vehicle_file = tmp_path / "vehicle.toml"
+    vehicle_file.write_text(
+        dump_vehicle_params(
+            VehicleParams(motor=paper_motor, esc=EscMap(0.04), current=CurrentReading(side="input", gain=0.9))
+        ),
+        encoding="utf-8",
+    )
+    vehicle = load_vehicle_params(vehicle_file)
+    table = vehicle.calibrate(table_from_fields(fields))
+    batch = diagnose(table, vehicle.models(range(1, 7)), load_profile("flight"))
+    plain = diagnose(table_from_fields(fields), paper_motor, load_profile("flight"))
+    assert not np.array_equal(batch["state"], plain["state"])  # the map changes what is judged
+
+    rows: list[dict] = []
+    config = load_agent_config(None, connect=str(path), profile="flight", params=str(vehicle_file))
+    assert config.esc == EscMap(0.04)
+
+    async def main() -> None:
+        async with Agent(config, on_row=rows.append) as agent:
+            await asyncio.wait_for(agent.wait(), timeout=60)
+
+    asyncio.run(main())
+    assert len(rows) == len(batch)
+    for motor in range(1, 7):
+        live = [r for r in rows if r["motor"] == motor]
+        sel = batch["motor"] == motor
+        np.testing.assert_array_equal(
+            [r["state"] for r in live], batch["state"][sel], err_msg=f"motor {motor}"
+        )
+        np.testing.assert_array_equal(
+            [r["announced"] for r in live], batch["announced"][sel], err_msg=f"motor {motor}"
+        )
+        np.testing.assert_array_equal([r["sensor_flags"] for r in live], batch["sensor_flags"][sel])
