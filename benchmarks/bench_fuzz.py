@@ -26,7 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
-from mav_motor_health.evaluation.damage import DAMAGE_KINDS, count_samples, damaged_copies, run_case
+from mav_motor_health.evaluation.damage import (
+    DAMAGE_KINDS,
+    count_samples,
+    damaged_copies,
+    dataflash_text,
+    run_case,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL = ROOT.parent / "shared" / "real_logs"
@@ -46,13 +52,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--limit-s", type=float, default=60.0, help="a case taking longer is a hang")
     args = parser.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix="mmh-fuzz-"))
+    # no public DataFlash text log carries ESC records: a text rendering of the simulated .bin does
+    rendered = work / "flight_F4.1_moderate_text.log"
+    rendered.write_text(dataflash_text(ROOT / "sitl_logs" / "flight_F4.1_moderate.bin"), encoding="utf-8")
     outcomes: Counter[str] = Counter()
     failures: list[str] = []
     print(
         f"{'log':<28}{'cases':>6}{'ok':>6}{'error':>7}{'crash':>7}{'hang':>6}  kept (median / worst, ok cases)"
     )
     fixed_rows = []
-    for log in LOGS:
+    for log in [*LOGS, rendered]:
         if not log.exists():
             print(f"{log.name:<28} missing: {log}", file=sys.stderr)
             continue

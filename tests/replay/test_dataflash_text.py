@@ -12,8 +12,9 @@ import pytest
 from pymavlink import DFReader
 
 from mav_motor_health.errors import DataError
+from mav_motor_health.evaluation.damage import dataflash_text
 from mav_motor_health.telemetry import sources
-from mav_motor_health.telemetry.dataflash import read_records, read_text_records
+from mav_motor_health.telemetry.dataflash import read_text_records
 
 
 @pytest.fixture(scope="module")
@@ -48,18 +49,8 @@ def test_text_log_without_esc_names_what_it_holds(text_log: Path) -> None:
 def test_esc_records_in_a_text_log_give_the_binary_logs_table(sitl_bin: Path, tmp_path: Path) -> None:
     head = tmp_path / "head.bin"
     head.write_bytes(sitl_bin.read_bytes()[:1_500_000])
-    binary = read_records(head, ["ESC", "RCOU", "PARM"], warn=False)
-    lines = []
-    for name in ("PARM", "ESC", "RCOU"):
-        fmt = binary.formats[name]
-        lines.append(f"FMT, {fmt.type}, {fmt.length}, {name}, {fmt.format}, {','.join(fmt.columns)}")
-    for name in ("PARM", "ESC", "RCOU"):
-        cols = binary[name]
-        for row in zip(*cols.values()):
-            cells = [c.split(b"\0")[0].decode() if isinstance(c, bytes) else repr(float(c)) for c in row]
-            lines.append(", ".join([name, *cells]))
     text = tmp_path / "head.log"
-    text.write_text("ArduCopter V4.7.0-dev\n" + "\n".join(lines) + "\n")
+    text.write_text(dataflash_text(head, ("PARM", "ESC", "RCOU")))
     from_text = sources.read(text)
     with pytest.warns(UserWarning, match="damaged log"):  # the binary head is cut mid-record
         from_binary = sources.read(head)

@@ -11,7 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mav_motor_health.evaluation.damage import DAMAGE_KINDS, count_samples, damaged_copies, run_case
+from mav_motor_health.evaluation.damage import (
+    DAMAGE_KINDS,
+    count_samples,
+    damaged_copies,
+    dataflash_text,
+    run_case,
+)
 
 SITL_LOGS = Path(__file__).resolve().parents[2] / "sitl_logs"
 
@@ -41,9 +47,15 @@ def test_damaged_logs_end_in_samples_or_a_clear_error(real_logs, tmp_path, index
         assert outcomes.count("ok") >= len(outcomes) // 2
 
 
-@pytest.mark.parametrize("index", range(4))
+@pytest.mark.parametrize("index", range(5))
 def test_truncation_and_one_flipped_byte_keep_almost_every_sample(real_logs, tmp_path, index: int) -> None:
-    log = _logs(real_logs)[index]
+    if (
+        index == 4
+    ):  # DataFlash text with ESC records: a rendering of the simulated .bin (no public one has them)
+        log = tmp_path / "rendered.log"
+        log.write_text(dataflash_text(SITL_LOGS / "flight_F4.1_moderate.bin"), encoding="utf-8")
+    else:
+        log = _logs(real_logs)[index]
     data = log.read_bytes()
     intact = count_samples(log)
     path = tmp_path / f"cut{log.suffix}"

@@ -21,7 +21,15 @@ import numpy as np
 
 from ..errors import MotorHealthError
 
-__all__ = ["DAMAGE_KINDS", "CaseResult", "Damage", "damaged_copies", "format_offsets", "run_case"]
+__all__ = [
+    "DAMAGE_KINDS",
+    "CaseResult",
+    "Damage",
+    "damaged_copies",
+    "dataflash_text",
+    "format_offsets",
+    "run_case",
+]
 
 DAMAGE_KINDS = (
     "flip_byte",
@@ -163,3 +171,27 @@ def run_case(path: Path, limit_s: float = 30.0) -> CaseResult:
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+
+
+def dataflash_text(binary: Path, names: tuple[str, ...] = ("PARM", "ESC", "RCOU", "BAT")) -> str:
+    """A DataFlash *text* log (what Mission Planner exports as .log) of a binary log's ``names`` records:
+    their FMT lines, then the records in the binary log's order. No public text log carries ESC records,
+    so the text reader's ESC path is tested and fuzzed on such a rendering."""
+    from ..telemetry.dataflash import read_records
+
+    log = read_records(binary, list(names), warn=False)
+    present = [n for n in names if n in log]
+    lines = []
+    for name in present:
+        fmt = log.formats[name]
+        lines.append(f"FMT, {fmt.type}, {fmt.length}, {name}, {fmt.format}, {','.join(fmt.columns)}")
+    rows: list[tuple[int, str]] = []
+    for name in present:
+        cols = log[name]
+        for offset, row in zip(log.offsets[name].tolist(), zip(*cols.values())):
+            cells = [c.split(b"\0")[0].decode() if isinstance(c, bytes) else repr(float(c)) for c in row]
+            rows.append((int(offset), ", ".join([name, *cells])))
+    rows.sort(key=lambda r: r[0])
+    return (
+        "ArduCopter V4.7.0-dev (text rendering)\n" + "\n".join([*lines, *(text for _, text in rows)]) + "\n"
+    )
