@@ -605,7 +605,9 @@ def write_fleet_summary(out_dir: Path, results: Sequence[ReplayResult]) -> None:
     (out_dir / "fleet_summary.json").write_text(json.dumps(detail, indent=2), encoding="utf-8")
 
 
-def print_verdicts(result: ReplayResult, stream: TextIO = sys.stdout) -> None:
+def print_verdicts(result: ReplayResult, stream: TextIO | None = None) -> None:
+    # sys.stdout looked up at the call, not at import: it may have been replaced since (tests, embedding)
+    stream = sys.stdout if stream is None else stream
     stream.write(f"{result.log}: {result.rows} samples, {result.duration_s:.1f} s -> {result.out_dir}\n")
     for v in result.verdicts:
         stream.write(f"  motor {v.motor}: {v.state:8s} {v.reason}\n")

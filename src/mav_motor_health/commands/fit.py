@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
+from functools import partial
 from pathlib import Path
 
 from ..config import dump_motor_params
 from ..errors import DataError, FitError
-from ..model.estimation import DEFAULT_BIN_WIDTH_V, FitResult, estimate
+from ..model.estimation import DEFAULT_BIN_WIDTH_V, FitResult, estimate, estimate_with_esc
 from ..telemetry.table import TelemetryTable
 from ._common import read_telemetry, write_new_file
 
@@ -44,6 +45,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="FILE", help="write the fitted motor as a params TOML")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
     p.add_argument("--motor", type=int, action="append", help="use only this motor (repeatable)")
+    p.add_argument(
+        "--esc-map",
+        action="store_true",
+        help="bench mode: fit the ESC's idle offset and current side too, for files that give the ESC command "
+        "and the battery voltage (not the motor's voltage); see docs/model.md for what test-stand data allow",
+    )
     p.add_argument("--k", type=float, help="fix the propeller exponent instead of choosing it")
     p.add_argument("--fit-k", action="store_true", help="fit k as a real number")
     p.add_argument(
@@ -79,18 +86,37 @@ def fit_table(
     fit_k: bool = False,
     bin_width_v: float = DEFAULT_BIN_WIDTH_V,
     name: str = "fitted motor",
+    esc_map: bool = False,
 ) -> FitResult:
-    """Fit the model to a telemetry table (optionally only some motors)."""
-    if motors:
-        import numpy as np
+    """Fit the model to a telemetry table (optionally only some motors).
 
+    With ``esc_map``, a table with the ESC's command and bus voltage but no motor voltage (a test stand's
+    file) is fitted through the ESC map (:func:`estimate_with_esc`: idle offset, current side); otherwise,
+    and for a table with the motor voltage, by :func:`estimate` (the command taken as the duty). The map is
+    opt-in: a test stand's few steps rarely determine the idle offset (docs/model.md, "The ESC map in the
+    bench fit"), and on the CTU tables it made the fit worse."""
+    import numpy as np
+
+    if motors:
         table = table.select(np.isin(table["motor"], motors))
-    arrays = (table.voltage_v(), table["current_a"], table["omega_rad_s"])
+    direct = table.get("voltage_v")
+    through_esc = (
+        esc_map
+        and (direct is None or not np.isfinite(direct).any())
+        and "throttle" in table
+        and "bus_voltage_v" in table
+        and bool(np.isfinite(table["throttle"] * table["bus_voltage_v"]).any())
+    )
+    if through_esc:
+        fit = partial(estimate_with_esc, table["throttle"], table["bus_voltage_v"])
+    else:
+        fit = partial(estimate, table.voltage_v())
+    arrays = (table["current_a"], table["omega_rad_s"])
     try:
-        return estimate(*arrays, k=k, fit_k=fit_k, bin_width_v=bin_width_v, name=name)
+        return fit(*arrays, k=k, fit_k=fit_k, bin_width_v=bin_width_v, name=name)
     except FitError:
         # Bench files hold one sample per throttle step: each sample is its own operating point.
-        return estimate(*arrays, k=k, fit_k=fit_k, bin_width_v=bin_width_v, name=name, min_samples=1)
+        return fit(*arrays, k=k, fit_k=fit_k, bin_width_v=bin_width_v, name=name, min_samples=1)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -113,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
         fit_k=args.fit_k,
         bin_width_v=args.bin_width,
         name=f"fitted from {args.data}",
+        esc_map=args.esc_map,
     )
     params = result.params
     steps = None
@@ -153,6 +180,9 @@ def run(args: argparse.Namespace) -> int:
             "operating_points": str(len(result.points)),
             "accuracy_current_pct": f"{result.mechanical.accuracy_pct:.3f}",
         }
+        if result.esc is not None:  # the test stand's ESC, as provenance: not a map for flight logs
+            source["bench_esc_idle_offset"] = f"{result.esc.esc.idle_offset:.5f}"
+            source["bench_current_side"] = result.esc.current_side
         if steps is not None and steps.final is not None:
             source["effects"] = ", ".join(steps.final.effects)
             source["rmse_omega_rad_s"] = f"{steps.final.rmse_omega_rad_s:.4g}"

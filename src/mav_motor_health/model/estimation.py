@@ -15,13 +15,19 @@ Accuracy, one definition everywhere in this project::
 
 over the operating points (bin means), i.e. one minus the weighted mean absolute percentage error of the
 steady-state means, as the paper compares averaged measurements with the model in Figs. 1 and 2.
+
+**With the ESC map** (:func:`estimate_with_esc`): a test stand that logs the ESC's command and the *bus*
+voltage, not the motor's, fits eq. 9 through the ESC (:mod:`.esc`): the idle offset c₀ by a bounded
+scalar search, the side the current is read on (input/battery side ``s = d·i``, or motor side ``s = i``)
+by the smaller residual, then R, k_e and c₀ together by the same least-squares wrapper; eq. 10 is fitted
+on the motor current (``s/d`` on the input side) against the motor voltage ``d·V_bus``.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -30,16 +36,26 @@ from scipy.optimize import least_squares
 
 from ..errors import FitError
 from .equations import current_from_speed, steady_state, voltage_from_current_speed
+from .esc import (
+    DEFAULT_MIN_DUTY,
+    IDLE_OFFSET_RANGE,
+    ElectricalTerms,
+    EscMap,
+    fit_electrical_balance,
+    search_idle_offset,
+)
 from .params import PARAMETER_UNITS, MotorParams
 
 __all__ = [
     "EquationFit",
+    "EscFit",
     "FitResult",
     "OperatingPoints",
     "SpeedOnlyFit",
     "accuracy_pct",
     "estimate",
     "estimate_speed_only",
+    "estimate_with_esc",
     "operating_points",
 ]
 
@@ -48,6 +64,10 @@ FloatArray = NDArray[np.float64]
 DEFAULT_BIN_WIDTH_V = 0.05
 DEFAULT_MIN_SAMPLES = 3
 INTEGER_EXPONENTS = (1, 2, 3, 4, 5)
+#: the ESC's sides a current reading may be on (see :mod:`.esc`)
+ESC_CURRENT_SIDES = ("input", "motor")
+#: units of the fitted values that are not motor parameters
+_OTHER_UNITS = {"idle_offset": "of the command range"}
 
 
 def accuracy_pct(measured: ArrayLike, modelled: ArrayLike) -> float:
@@ -122,8 +142,36 @@ class EquationFit:
 
 
 @dataclass(frozen=True)
+class EscFit:
+    """The ESC map a bench fit found: the idle offset and the side the current was read on.
+
+    ``current_side`` is "input" (the battery side: the reading is duty × motor current) or "motor";
+    ``residual_v`` the RMS residual of the electrical balance [V] under each side at its own best idle
+    offset (the smaller one decides the side, unless it was given: ``side_from`` "data" or "given").
+    """
+
+    esc: EscMap
+    idle_offset_stderr: float
+    current_side: str
+    residual_v: dict[str, float]
+    side_from: str = "data"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "idle_offset": self.esc.idle_offset,
+            "idle_offset_stderr": self.idle_offset_stderr,
+            "current_side": self.current_side,
+            "side_from": self.side_from,
+            "residual_v": dict(self.residual_v),
+        }
+
+
+@dataclass(frozen=True)
 class FitResult:
-    """The two-step estimate: the fitted :class:`MotorParams` and how well each equation fits."""
+    """The two-step estimate: the fitted :class:`MotorParams` and how well each equation fits.
+
+    ``esc`` is the ESC map where the fit went through one (:func:`estimate_with_esc`), else None.
+    """
 
     params: MotorParams
     electrical: EquationFit
@@ -132,6 +180,7 @@ class FitResult:
     forward_accuracy_pct: dict[str, float]
     points: OperatingPoints = field(repr=False)
     exponent_bic: dict[float, float] = field(default_factory=dict)
+    esc: EscFit | None = None
 
     @property
     def stderr(self) -> dict[str, float]:
@@ -147,7 +196,7 @@ class FitResult:
 
     def to_dict(self) -> dict[str, Any]:
         p = self.params
-        return {
+        out = {
             "params": {"R_ohm": p.R_ohm, "k_e": p.k_e, "C_p": p.C_p, "B": p.B, "T_f": p.T_f, "k": p.k},
             "stderr": self.stderr,
             "rmse": self.rmse,
@@ -161,10 +210,32 @@ class FitResult:
             "n_points": len(self.points),
             "units": PARAMETER_UNITS,
         }
+        if self.esc is not None:
+            out["esc"] = self.esc.to_dict()
+        return out
 
     def report(self) -> str:
         """A plain-text table of parameters, standard errors and fit statistics."""
         lines = [f"[[Two-step Levenberg-Marquardt fit]]  {len(self.points)} operating points"]
+        if self.esc is not None:
+            e = self.esc
+            at_bound = min(abs(e.esc.idle_offset - b) for b in IDLE_OFFSET_RANGE) < 1e-6
+            lines.append(
+                f"  ESC map: idle offset {e.esc.idle_offset:.4f} +/- {e.idle_offset_stderr:.2g} of the command "
+                "range"
+                + (
+                    f" (AT THE BOUND of {IDLE_OFFSET_RANGE[0]:g}..{IDLE_OFFSET_RANGE[1]:g})"
+                    if at_bound
+                    else ""
+                )
+                + " (full command = full duty); motor voltage = duty x bus voltage"
+            )
+            lines.append(
+                f"  current read on the {e.current_side} side"
+                + (" (battery side: duty x motor current)" if e.current_side == "input" else "")
+                + f", {e.side_from}; electrical residual "
+                + ", ".join(f"{k} side {v:.3g} V" for k, v in e.residual_v.items())
+            )
         for fit in (self.electrical, self.mechanical):
             lines.append(
                 f"  {fit.equation}: rmse {fit.rmse:.4g}, R² {fit.r_squared:.5f}, "
@@ -175,7 +246,8 @@ class FitResult:
                 err = fit.stderr.get(name, float("nan"))
                 rel = abs(err / value) * 100 if value else float("inf")
                 lines.append(
-                    f"    {name:6s} = {value: .5g} +/- {err:.3g} ({rel:.2g} %)  [{PARAMETER_UNITS[name]}]"
+                    f"    {name:6s} = {value: .5g} +/- {err:.3g} ({rel:.2g} %)  "
+                    f"[{PARAMETER_UNITS.get(name) or _OTHER_UNITS[name]}]"
                 )
         ks = ", ".join(
             f"k={k:g}: {v:.4g} A" + (f" (BIC {self.exponent_bic[k]:.1f})" if k in self.exponent_bic else "")
@@ -340,7 +412,19 @@ def estimate(
             f"{len(points)} operating points after grouping by {bin_width_v} V of input voltage; "
             f"the fit needs at least {needed} distinct steady points"
         )
-    electrical = fit_electrical(points)
+    return _second_step(points, fit_electrical(points), k, fit_k, exponents, name)
+
+
+def _second_step(
+    points: OperatingPoints,
+    electrical: EquationFit,
+    k: float | None,
+    fit_k: bool,
+    exponents: tuple[int, ...],
+    name: str,
+    esc: EscFit | None = None,
+) -> FitResult:
+    """Step 2 (eq. 10) on the operating points with step 1's k_e, and the forward accuracy of both."""
     R, k_e = electrical.values["R_ohm"], electrical.values["k_e"]
     if not (R > 0 and k_e > 0):
         raise FitError(
@@ -375,6 +459,111 @@ def estimate(
         forward_accuracy_pct=forward_acc,
         points=points,
         exponent_bic={kk: f.bic for kk, f in fits.items()},
+        esc=esc,
+    )
+
+
+def estimate_with_esc(
+    command: ArrayLike,
+    bus_voltage_v: ArrayLike,
+    current_a: ArrayLike,
+    omega_rad_s: ArrayLike,
+    *,
+    side: str | None = None,
+    k: float | None = None,
+    fit_k: bool = False,
+    exponents: tuple[int, ...] = INTEGER_EXPONENTS,
+    bin_width_v: float | None = DEFAULT_BIN_WIDTH_V,
+    min_samples: int = DEFAULT_MIN_SAMPLES,
+    name: str = "fitted motor",
+) -> FitResult:
+    """Estimate the motor model through the ESC map, from the ESC's command and bus voltage.
+
+    ``command`` is the ESC command as a fraction of its range (0..1), ``bus_voltage_v`` the ESC's supply
+    voltage, ``current_a`` the current as measured (battery or motor side: ``side`` "input" or "motor",
+    decided by the smaller electrical residual when None), ``omega_rad_s`` the mechanical speed. The
+    samples are grouped into operating points by the nominal voltage command × bus voltage as
+    :func:`estimate` groups its input voltage. Step 1 finds the idle offset c₀ by the bounded scalar
+    search of :mod:`.esc` for each side, then fits R, k_e and c₀ together (least squares, R, k_e ≥ 0, c₀
+    in :data:`~.esc.IDLE_OFFSET_RANGE`); step 2 is :func:`estimate`'s on the motor voltage d·V_bus and the
+    motor current (the reading over the duty on the input side, at operating points with a duty of at
+    least :data:`~.esc.DEFAULT_MIN_DUTY`). ``forward_accuracy_pct["esc_current"]`` compares the reading as
+    measured with the model's (duty × motor current on the input side).
+    """
+    if side is not None and side not in ESC_CURRENT_SIDES:
+        raise FitError(f"side must be one of {', '.join(ESC_CURRENT_SIDES)}, got {side!r}")
+    c = np.asarray(command, dtype=float).ravel()
+    v = np.asarray(bus_voltage_v, dtype=float).ravel()
+    s = np.asarray(current_a, dtype=float).ravel()
+    w = np.asarray(omega_rad_s, dtype=float).ravel()
+    ok = np.isfinite(c) & np.isfinite(v) & np.isfinite(s) & np.isfinite(w)
+    c, v, s, w = np.clip(c[ok], 0.0, 1.0), v[ok], s[ok], w[ok]
+    if bin_width_v is None:  # every sample its own operating point, as in operating_points()
+        bins, min_samples = np.arange(c.size, dtype=np.int64), 1
+    elif bin_width_v <= 0:
+        raise FitError(f"bin_width_v must be > 0, got {bin_width_v}")
+    else:
+        bins = np.round(c * v / bin_width_v).astype(np.int64)
+    _, index, count = np.unique(bins, return_inverse=True, return_counts=True)
+    kept = count[index] >= min_samples
+    count = count[count >= min_samples].astype(np.int64)
+    terms = ElectricalTerms.from_samples(c[kept], v[kept], w[kept], s[kept], bins[kept])
+    needed = 4 if fit_k else 3
+    if count.size < needed:
+        raise FitError(
+            f"{count.size} operating points after grouping by {bin_width_v} V of command x bus voltage; "
+            f"the fit needs at least {needed} distinct steady points"
+        )
+    searched = {sd: search_idle_offset({1: terms}, sd) for sd in ((side,) if side else ESC_CURRENT_SIDES)}
+    chosen = min(searched, key=lambda sd: searched[sd][1])
+    electrical = _fit_electrical_with_esc(terms, chosen, searched[chosen][0])
+    c0 = electrical.values["idle_offset"]
+    duty = terms.duty(c0)
+    if chosen == "input":  # the motor current is the reading over the duty: undefined near idle
+        motor_current, use = terms.s / duty, duty >= DEFAULT_MIN_DUTY
+    else:
+        motor_current, use = terms.s, duty > 0.0
+    points = OperatingPoints(terms.motor_voltage_v(c0)[use], motor_current[use], terms.w[use], count[use])
+    if len(points) < needed:
+        raise FitError(
+            f"{len(points)} operating points above the ESC's idle offset {c0:.3f} (a duty of at least "
+            f"{DEFAULT_MIN_DUTY} on the input side); the fit needs at least {needed}"
+        )
+    esc = EscFit(
+        esc=EscMap(idle_offset=c0),
+        idle_offset_stderr=electrical.stderr["idle_offset"],
+        current_side=chosen,
+        residual_v={sd: r[1] for sd, r in searched.items()},
+        side_from="given" if side else "data",
+    )
+    result = _second_step(points, electrical, k, fit_k, exponents, name, esc)
+    model_current = steady_state(result.params, points.voltage_v).current_a
+    reading = model_current * duty[use] if chosen == "input" else model_current
+    forward = {**result.forward_accuracy_pct, "esc_current": accuracy_pct(terms.s[use], reading)}
+    return replace(result, forward_accuracy_pct=forward)
+
+
+def _fit_electrical_with_esc(terms: ElectricalTerms, side: str, c0_start: float) -> EquationFit:
+    """R, k_e and the idle offset c₀ of eq. 9 through the ESC (:mod:`.esc`), started from the scalar
+    search's c₀ and the linear fit at it; the residual in volts (each bin divided by its mean duty)."""
+    coef, _, _ = fit_electrical_balance(terms, c0_start, side)
+    y_start, _, _ = terms.weighted_rows(c0_start, side)
+
+    def residual(x: FloatArray) -> FloatArray:
+        y, a, _ = terms.weighted_rows(float(x[2]), side)
+        return x[1] * a[:, 0] + x[0] * a[:, 1] - y  # y_t − y_m, eq. 8, in volts
+
+    x0 = np.array([coef[1], coef[0], c0_start])
+    scale = np.array([max(abs(x0[0]), 1e-3), max(abs(x0[1]), 1e-5), 0.05])
+    return _levenberg_marquardt(
+        residual,
+        x0,
+        scale,
+        ["R_ohm", "k_e", "idle_offset"],
+        y_start,
+        f"electrical through the ESC (eq. 9, {side}-side current)",
+        lower=np.array([0.0, 0.0, IDLE_OFFSET_RANGE[0]]),
+        upper=np.array([np.inf, np.inf, IDLE_OFFSET_RANGE[1]]),
     )
 
 

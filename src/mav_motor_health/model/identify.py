@@ -49,6 +49,10 @@ from scipy.optimize import lsq_linear, minimize_scalar
 from ..errors import FitError
 from ..telemetry.table import TelemetryTable
 from .dynamics import first_order_response
+from .esc import ElectricalTerms as _ElectricalTerms  # the ESC map and the electrical balance through it
+from .esc import EscMap  # are shared with the bench fit (estimation.estimate_with_esc)
+from .esc import fit_electrical_balance as _electrical_fit
+from .esc import search_idle_offset as _pooled_electrical
 from .estimation import K_BIC_MARGIN, choose_exponent
 from .params import MotorParams
 
@@ -76,17 +80,6 @@ BATTERY_GAIN_RANGE = (0.3, 3.0)
 K_SPEED_SPAN = 1.6
 #: time constant of the mechanical balance's low-pass [s]
 MECHANICAL_TAU_S = 0.3
-
-
-@dataclass(frozen=True)
-class EscMap:
-    """The ESC's command → duty map: duty = clip((command − idle_offset)/(1 − idle_offset), 0, 1)."""
-
-    idle_offset: float = 0.0
-
-    def duty(self, command: FloatArray) -> FloatArray:
-        c0 = self.idle_offset
-        return np.clip((np.asarray(command, dtype=float) - c0) / (1.0 - c0), 0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -205,67 +198,6 @@ def _motor_data(table: TelemetryTable, bin_s: float) -> list[_MotorData]:
     return out
 
 
-def _bin_means(bins: NDArray[np.int64], columns: Mapping[str, FloatArray]) -> dict[str, FloatArray]:
-    _, index, counts = np.unique(bins, return_inverse=True, return_counts=True)
-    return {name: np.bincount(index, weights=values) / counts for name, values in columns.items()}
-
-
-@dataclass(frozen=True)
-class _ElectricalTerms:
-    """Bin means of the products the electrical balance needs, for any idle offset c₀."""
-
-    c: FloatArray
-    c2v: FloatArray
-    cv: FloatArray
-    v: FloatArray
-    cw: FloatArray
-    w: FloatArray
-    s: FloatArray
-
-    @classmethod
-    def of(cls, m: _MotorData) -> _ElectricalTerms:
-        have = np.isfinite(m.current)
-        c, v, w, s = m.command[have], m.bus_v[have], m.omega[have], m.current[have]
-        means = _bin_means(
-            m.bins[have], {"c": c, "c2v": c * c * v, "cv": c * v, "v": v, "cw": c * w, "w": w, "s": s}
-        )
-        return cls(**means)
-
-    def rows(self, c0: float, side: str) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """(y, x_ke, x_r, mean duty) with y = k_e·x_ke + (R/g)·x_r for the reading's side."""
-        scale = 1.0 - c0
-        duty = (self.c - c0) / scale
-        dv = (self.cv - c0 * self.v) / scale  # ⟨d·V⟩
-        if side == "input":
-            y = (self.c2v - 2 * c0 * self.cv + c0 * c0 * self.v) / scale**2  # ⟨d²·V⟩
-            x_ke = (self.cw - c0 * self.w) / scale  # ⟨d·ω⟩
-            return y, x_ke, self.s, duty
-        return dv, self.w, self.s, np.ones_like(duty)
-
-
-def _electrical_fit(
-    terms: _ElectricalTerms, c0: float, side: str
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """(k_e, R/g) ≥ 0 for one motor, their standard errors, and the residual in volts (per bin, divided
-    by the mean duty)."""
-    y, x_ke, x_r, duty = terms.rows(c0, side)
-    # in volts: each bin's balance divided by its mean duty (bins at near-zero duty say nothing)
-    weight = np.where(duty > 0.02, 1.0 / np.maximum(duty, 0.02), 0.0)
-    y, a = y * weight, np.column_stack([x_ke, x_r]) * weight[:, None]
-    scale = np.maximum(np.abs(a).max(axis=0), 1e-12)
-    sol = lsq_linear(a / scale, y, bounds=(0.0, np.inf), method="bvls")
-    coef = sol.x / scale
-    raw = y - a @ coef
-    resid = np.where(weight > 0, raw, np.nan)
-    dof = max(y.size - 2, 1)
-    try:
-        cov = np.linalg.inv(a.T @ a) * float(np.sum(raw**2)) / dof
-        stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        stderr = np.full(2, np.nan)
-    return coef, stderr, resid
-
-
 def _ke_given_r(terms: _ElectricalTerms, c0: float, side: str, r_ohm: float) -> float:
     """k_e with R fixed (the prior's), where the current cannot part the two: the same balance, one
     unknown."""
@@ -283,36 +215,6 @@ def _usable_current(terms: _ElectricalTerms) -> bool:
         return False
     r = np.corrcoef(s, w * w)[0, 1]
     return bool(np.isfinite(r) and r > 0.3)
-
-
-def _pooled_electrical(terms: Mapping[int, _ElectricalTerms], side: str) -> tuple[float, float, float]:
-    """The idle offset c₀ that minimises the pooled residual, that residual's RMS [V], and c₀'s standard
-    error (from the cost's curvature: var = 2·σ²/(n·cost''))."""
-    count = [0]
-
-    def cost(c0: float) -> float:
-        total, n = 0.0, 0
-        for t in terms.values():
-            _, _, resid = _electrical_fit(t, c0, side)
-            good = np.isfinite(resid)
-            total += float(np.sum(resid[good] ** 2))
-            n += int(good.sum())
-        count[0] = n
-        return total / max(n, 1)
-
-    grid = np.linspace(-0.05, 0.3, 36)
-    costs = [cost(c) for c in grid]
-    best = int(np.argmin(costs))
-    lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
-    found = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-5})
-    c0 = float(found.x) if found.fun <= costs[best] else float(grid[best])
-    at = cost(c0)
-    h = 0.005
-    curvature = (cost(c0 + h) - 2 * at + cost(c0 - h)) / h**2
-    n = max(count[0], 1)
-    stderr = math.sqrt(2 * at / (n * curvature)) if curvature > 0 else math.inf
-    on_edge = c0 <= grid[0] + 1e-3 or c0 >= grid[-1] - 1e-3
-    return c0, math.sqrt(at), math.inf if on_edge else stderr
 
 
 def _battery_gain(
@@ -413,7 +315,9 @@ def identify(
     pairing_s = float(table.meta.get("pairing_s") or 0.0)
     bin_s = max(bin_s, PAIRING_BINS * pairing_s) if math.isfinite(pairing_s) else bin_s
     data = _motor_data(table, bin_s)
-    terms = {m.motor: _ElectricalTerms.of(m) for m in data}
+    terms = {
+        m.motor: _ElectricalTerms.from_samples(m.command, m.bus_v, m.omega, m.current, m.bins) for m in data
+    }
     usable = {motor: _usable_current(t) for motor, t in terms.items()}
     findings: list[str] = []
     c0_stderr = math.inf
