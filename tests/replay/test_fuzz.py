@@ -69,3 +69,17 @@ def test_truncation_and_one_flipped_byte_keep_almost_every_sample(real_logs, tmp
         path.write_bytes(bytes(damaged))
         flipped = run_case(path)
         assert flipped.outcome == "ok" and flipped.samples >= 0.999 * intact, flipped.message
+
+
+def test_a_text_log_with_bits_flipped_in_its_esc_records_reads_or_fails_clearly(tmp_path) -> None:
+    """The benchmark's first run over a text log with ESC records found 14 tracebacks, all with scattered
+    bit flips: a damaged instance or PWM read as NaN and cast to an integer, an ESC index in the millions,
+    a parameter name damaged into a number. These are the copies of that run (seed 1)."""
+    rendered = dataflash_text(SITL_LOGS / "flight_F4.1_moderate.bin").encode()
+    path = tmp_path / "case.log"
+    cases = [c for c in damaged_copies(rendered, ".log", seed=1, count=100) if c.kind == "flip_bits"]
+    assert len(cases) >= 12
+    for case in cases:
+        path.write_bytes(case.data)
+        result = run_case(path, limit_s=60.0)
+        assert result.outcome in ("ok", "error"), f"seed {case.seed}: {result.message}"

@@ -70,6 +70,10 @@ class EscSamples:
         )
 
 
+#: ESC indices an autopilot numbers (ArduPilot and PX4: at most 32 ESCs)
+MAX_ESC_SLOTS = 32
+
+
 def _sorted_series(series: Series) -> Series:
     t, v = np.asarray(series[0], dtype=float), np.asarray(series[1], dtype=float)
     if len(t) > 1 and np.any(np.diff(t) < 0):
@@ -94,10 +98,12 @@ def motor_table(
     (0 or NaN), the battery voltage stands in for ``bus_voltage_v``.
     """
     slots = np.asarray(esc.slot, dtype=np.int64)
-    slot_motor = np.zeros(int(slots.max()) + 1 if len(slots) else 1, dtype=np.int64)
-    for slot in np.unique(slots).tolist():
+    # an ESC index outside 0..31 is a damaged record (autopilots number at most 32 ESCs): dropped
+    in_range = (slots >= 0) & (slots < MAX_ESC_SLOTS)
+    slot_motor = np.zeros(MAX_ESC_SLOTS, dtype=np.int64)
+    for slot in np.unique(slots[in_range]).tolist():
         slot_motor[slot] = motor_of_slot.get(int(slot)) or 0
-    motors_all = slot_motor[slots]
+    motors_all = np.where(in_range, slot_motor[np.clip(slots, 0, MAX_ESC_SLOTS - 1)], 0)
     keep = np.flatnonzero(motors_all > 0)
     # Rows ordered by motor, then time: logs write ESC samples in time order, so a stable sort by motor
     # is enough; otherwise sort by both.

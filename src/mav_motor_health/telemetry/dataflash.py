@@ -18,6 +18,7 @@ servo output ``i+1``, so its motor follows from ``SERVO{i+1}_FUNCTION`` (see :mo
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -105,10 +106,16 @@ class DataflashLog:
         return self.records[name]
 
 
-def _text(raw: bytes | str) -> str:
+#: format characters of integer fields (a damaged text cell there cannot stand as NaN)
+_INTEGER_CHARS = "bBhHiIqQMLc"
+
+
+def _text(raw: object) -> str:
     if isinstance(raw, str):
         return raw
-    return raw.split(b"\0", 1)[0].decode("ascii", "replace")
+    if isinstance(raw, bytes):
+        return raw.split(b"\0", 1)[0].decode("ascii", "replace")
+    return ""  # a string field whose format character was damaged into a number's
 
 
 def _time_us(rec: dict[str, NDArray[Any]]) -> NDArray[np.int64] | None:
@@ -293,7 +300,12 @@ def _dataflash_table(path: Path, log: DataflashLog, kind: str) -> TelemetryTable
     params: dict[str, float] = {}
     if "PARM" in log:
         for name, value in zip(log["PARM"]["Name"].tolist(), log["PARM"]["Value"].tolist()):
-            params[_text(name)] = float(value)
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                continue  # a value damaged into text: that parameter is not known
+            if math.isfinite(number) and _text(name):
+                params[_text(name)] = number
     esc = log["ESC"]
     temp = esc["Temp"].astype(float)
     samples = EscSamples(
@@ -413,6 +425,7 @@ def read_text_records(
     for name, records in rows.items():
         fmt = out.formats[name]
         columns: dict[str, NDArray[Any]] = {}
+        unreadable = np.zeros(len(records), dtype=bool)
         for k, (column, char) in enumerate(zip(fmt.columns, fmt.format)):
             cells = [r[k] for r in records]
             if char in "nNZ":
@@ -423,8 +436,15 @@ def read_text_records(
                 try:
                     numbers[i] = float(cell)
                 except ValueError:
-                    bad_lines.append(-1)
+                    unreadable[i] = True
+            if char in _INTEGER_CHARS:  # an instance, a time stamp, a PWM: a damaged one is no number at all
+                unreadable |= ~np.isfinite(numbers)
             columns[column] = numbers
+        # a record with a value that is not a number is damage: it goes whole, not as a NaN in one field
+        if unreadable.any():
+            bad_lines.extend([-1] * int(unreadable.sum()))
+            out.counts[name] -= int(unreadable.sum())
+            columns = {column: values[~unreadable] for column, values in columns.items()}
         out.records[name] = columns
     if bad_lines:
         first = min(n for n in bad_lines if n > 0) if any(n > 0 for n in bad_lines) else 0

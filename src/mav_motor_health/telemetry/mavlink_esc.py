@@ -61,8 +61,8 @@ DEFAULT_PWM_MAX_US = 2000.0
 def motor_for_output(output: int, params: Mapping[str, float] | None = None) -> int | None:
     """Motor number (1-based) driven by servo output ``output`` (1-based), or None if it drives no motor."""
     function = None if params is None else params.get(f"SERVO{output}_FUNCTION")
-    if function is None:
-        return output  # ArduPilot's default: output n is motor n
+    if function is None or not math.isfinite(function):
+        return output  # ArduPilot's default: output n is motor n (also where the value was damaged)
     function = int(function)
     if MOTOR_FUNCTION_FIRST <= function < MOTOR_FUNCTION_FIRST + 12:
         return function - MOTOR_FUNCTION_FIRST + 1
