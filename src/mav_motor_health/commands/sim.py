@@ -1,15 +1,22 @@
-"""``mav-motor-health sim --connect URL``: a live simulated ArduPilot hexacopter on a MAVLink link."""
+"""``mav-motor-health sim --connect URL``: a live simulated ArduPilot hexacopter on a MAVLink link.
+
+``--world SEED`` flies a randomised world's vehicle (:mod:`..sim.worlds`); without ``--scenario`` it flies
+the world's own manoeuvre plan, then hovers."""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import time
 
 from ..agent.demo import parse_fault
+from ..errors import ConfigError
 from ..sim.live import FAULT_CODES, SimVehicle
-from ..sim.scenario import load_scenario
+from ..sim.scenario import WORLD_SCENARIO_NAMES, load_scenario, world_scenario
+from ..sim.worlds import draw_world
 from ._common import positive_float, socket_url
+from .simulate import world_seed
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -29,7 +36,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="udpout:HOST:PORT, udpin:..., tcpin:..., tcp:...",
     )
     p.add_argument(
-        "--scenario", default="flight/healthy_calm", help="flight scenario (default flight/healthy_calm)"
+        "--scenario",
+        default=None,
+        help="flight scenario (default flight/healthy_calm; with --world the world's own plan)",
+    )
+    p.add_argument(
+        "--world",
+        type=world_seed,
+        default=None,
+        metavar="SEED",
+        help="fly the randomised world of SEED (its vehicle, motors, ESCs, telemetry)",
     )
     p.add_argument(
         "--speed", type=positive_float, default=1.0, help="simulated seconds per real second (default 1)"
@@ -48,7 +64,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
-    scenario = load_scenario(args.scenario)
+    if args.world is not None and (args.scenario is None or args.scenario in WORLD_SCENARIO_NAMES):
+        scenario = world_scenario(args.world)
+    elif args.scenario in WORLD_SCENARIO_NAMES:
+        raise ConfigError(
+            f"scenario {args.scenario!r} flies a randomised world", key="--world", expected="--world SEED"
+        )
+    else:
+        scenario = load_scenario(args.scenario or "flight/healthy_calm")
+        if args.world is not None:
+            scenario = dataclasses.replace(scenario, world=args.world)
+    if scenario.world is not None:
+        print(draw_world(scenario.world).report(), flush=True)
     fault_at = None
     if args.fault:
         plan = parse_fault(args.fault)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["MONITOR_TAU_S", "Battery", "BatterySpec"]
+__all__ = ["MONITOR_TAU_S", "Battery", "BatterySpec", "cell_open_circuit_v"]
 
 #: time constant of the battery monitor's current average [s]
 MONITOR_TAU_S = 0.1
@@ -25,6 +25,15 @@ class BatterySpec:
     initial_soc: float = 1.0
     #: a stiff supply (the testbed's): constant voltage, no sag, no discharge
     supply_v: float | None = None
+    #: the current monitor's scale (reading / true; 1: honest)
+    monitor_gain: float = 1.0
+
+
+def cell_open_circuit_v(soc: float) -> float:
+    """Open-circuit voltage of one LiPo cell [V] at state of charge ``soc`` (clipped to 0..1)."""
+    x = min(max(soc, 0.0), 1.0) * 10.0
+    k = min(int(x), 9)
+    return _CELL_OCV_V[k] + (x - k) * (_CELL_OCV_V[k + 1] - _CELL_OCV_V[k])
 
 
 class Battery:
@@ -41,18 +50,16 @@ class Battery:
     def open_circuit_v(self) -> float:
         if self.spec.supply_v is not None:
             return self.spec.supply_v
-        soc = min(max(self.soc, 0.0), 1.0) * 10.0
-        k = min(int(soc), 9)
-        cell = _CELL_OCV_V[k] + (soc - k) * (_CELL_OCV_V[k + 1] - _CELL_OCV_V[k])
-        return self.spec.cells * cell
+        return self.spec.cells * cell_open_circuit_v(self.soc)
 
     def step(self, current_a: float, dt: float) -> float:
         """Draw ``current_a`` for ``dt`` seconds; returns the terminal voltage."""
         self.current_a = current_a
+        sensed_a = current_a * self.spec.monitor_gain
         if math.isnan(self.monitor_current_a):
-            self.monitor_current_a = current_a
+            self.monitor_current_a = sensed_a
         else:
-            self.monitor_current_a += (current_a - self.monitor_current_a) * (
+            self.monitor_current_a += (sensed_a - self.monitor_current_a) * (
                 1.0 - math.exp(-dt / MONITOR_TAU_S)
             )
         if self.spec.supply_v is not None:

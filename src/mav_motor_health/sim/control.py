@@ -23,7 +23,10 @@ from ..model.equations import current_from_speed, steady_state
 from ..model.params import MotorParams
 from .vehicle import GRAVITY_M_S2, Airframe, RigidBody
 
-__all__ = ["FlightController", "Gains"]
+__all__ = ["BALANCE_TAU_S", "FlightController", "Gains"]
+
+#: time constant of the thrust demand's filter for the balance check [s] (AP_MotorsMatrix: 1/(0.5·loop rate))
+BALANCE_TAU_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,11 @@ class Gains:
     spin_min: float = 0.12
     spin_max: float = 1.0
     lost_after_s: float = 0.25
+    #: a saturated motor is declared lost only where its thrust demand (filtered over
+    #: :data:`BALANCE_TAU_S`) is at least this many times the working motors' mean, as ArduPilot's thrust
+    #: balance (1.5) does; 0: saturation alone. A vehicle with little thrust to spare saturates its
+    #: healthy motors in a hard manoeuvre, all of them high: the balance tells that from a failed motor.
+    loss_balance: float = 0.0
 
 
 class FlightController:
@@ -71,6 +79,7 @@ class FlightController:
         self.gyro_noise_rad_s = 0.0
         self.rng: np.random.Generator | None = None
         self._max_thrust_cache: dict[int, float] = {}
+        self._demand_filt: NDArray[np.float64] | None = None
 
     def _set_mixer(self) -> None:
         """Pseudo-inverse of the allocation over the motors still working (ArduPilot's thrust boost)."""
@@ -84,6 +93,9 @@ class FlightController:
         now_sat = self.saturated & ~self.lost
         self._saturated_since = np.where(now_sat, np.minimum(self._saturated_since, time_s), np.inf)
         newly = (time_s - self._saturated_since) >= self.g.lost_after_s
+        if newly.any() and self.g.loss_balance > 0 and self._demand_filt is not None:
+            mean = float(self._demand_filt[~self.lost].mean())
+            newly &= self._demand_filt >= self.g.loss_balance * max(mean, 1e-9)
         if newly.any() and (self.lost | newly).sum() <= 1:
             self.lost |= newly
             self._set_mixer()
@@ -164,7 +176,16 @@ class FlightController:
         upper = float(np.min((t_max - rpy[lifts]) / u))
         c = 0.5 * (lower + upper) if lower > upper else min(max(collective, lower), upper)
         base = unit * c + rpy
-        duty = self.duty_for_thrust(base + scale * yaw, bus_voltage_v)
+        demand = base + scale * yaw
+        if g.loss_balance > 0:
+            share = demand / t_max
+            if self._demand_filt is None:
+                self._demand_filt = share
+            else:
+                self._demand_filt = self._demand_filt + (share - self._demand_filt) * (
+                    dt / (BALANCE_TAU_S + dt)
+                )
+        duty = self.duty_for_thrust(demand, bus_voltage_v)
         # A lost motor is still asked for everything: its command stays saturated.
         return np.where(self.lost, g.spin_max, duty)
 

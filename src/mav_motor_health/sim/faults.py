@@ -26,18 +26,22 @@ Each fault acts on one motor from ``onset_s`` on, scaled by ``severity`` (1.0: a
 
 F2.1 and F4.2 have no partial form in the paper (a phase is open or it is not); their severity scales
 the stall current only.
+
+The absolute constants (the rubbing bar's torque, the stall currents) are the paper's X2212's. On another
+motor (a randomised world, :mod:`.worlds`) a :class:`FaultScale` carries them over in proportion to the
+motor's hover torque, speed and current, so a fault is as strong relative to its motor as in the paper.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ConfigError
 
-__all__ = ["FAULT_KINDS", "FaultEffects", "FaultSpec", "effects_at"]
+__all__ = ["FAULT_KINDS", "FaultEffects", "FaultScale", "FaultSpec", "effects_at"]
 
 FAULT_KINDS = ("F1.1", "F2.1", "F3.1", "F4.1", "F4.2")
 
@@ -51,6 +55,22 @@ THRUST_LENGTH_EXPONENT = 4.0
 PAPER_TRIM_SEVERITY = 0.7
 #: Default stall currents [A] (paper: about 3 A for F2.1, 7–8 A for F4.2 on the testbed).
 STALL_CURRENT_A = {"F2.1": 3.0, "F4.2": 7.7}
+
+
+@dataclass(frozen=True)
+class FaultScale:
+    """A motor's size relative to the paper's X2212 at its hover (0.037 N·m, 604 rad/s, 3.8 A): the
+    factors that carry the faults' absolute constants over to it (1: the paper's motor)."""
+
+    torque: float = 1.0
+    speed: float = 1.0
+    current: float = 1.0
+
+    def resolve(self, fault: FaultSpec) -> FaultSpec:
+        """``fault`` with its stall current in this motor's amperes (explicit ones are kept)."""
+        if fault.stall_current_a is not None or fault.kind not in STALL_CURRENT_A:
+            return fault
+        return replace(fault, stall_current_a=fault.stall_current * self.current)
 
 
 @dataclass(frozen=True)
@@ -135,17 +155,28 @@ class FaultEffects:
         )
 
 
-def effects_at(faults: tuple[FaultSpec, ...] | list[FaultSpec], time_s: float, n_motors: int) -> FaultEffects:
-    """The combined effect of every fault active at ``time_s`` (motors beyond ``n_motors`` ignored)."""
+def effects_at(
+    faults: tuple[FaultSpec, ...] | list[FaultSpec],
+    time_s: float,
+    n_motors: int,
+    scale: FaultScale | None = None,
+) -> FaultEffects:
+    """The combined effect of every fault active at ``time_s`` (motors beyond ``n_motors`` ignored), on a
+    motor of ``scale`` (None: the paper's)."""
     fx = FaultEffects.healthy(n_motors)
+    if scale is not None:
+        faults = [scale.resolve(f) for f in faults]
+    rub_torque, rub_viscous = RUB_TORQUE_NM, RUB_VISCOUS_NM_S
+    if scale is not None:
+        rub_torque, rub_viscous = rub_torque * scale.torque, rub_viscous * scale.torque / scale.speed
     for f in faults:
         j = f.motor - 1
         if j >= n_motors or not f.active(time_s):
             continue
         s = f.strength
         if f.kind == "F1.1":
-            fx.rub_torque_nm[j] += s * RUB_TORQUE_NM
-            fx.rub_viscous_nm_s[j] += s * RUB_VISCOUS_NM_S
+            fx.rub_torque_nm[j] += s * rub_torque
+            fx.rub_viscous_nm_s[j] += s * rub_viscous
         elif f.kind == "F3.1":
             fx.load_factor[j] *= (1.0 - s) ** LOAD_LENGTH_EXPONENT
             fx.thrust_factor[j] *= (1.0 - s) ** THRUST_LENGTH_EXPONENT

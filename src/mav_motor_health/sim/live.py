@@ -147,6 +147,9 @@ class SimVehicle:
         self.sim = Simulation(self.scenario)
         self.params: dict[str, float] = self.sim.ardupilot_params()
         self.rates_hz = dict(DEFAULT_RATES_HZ)
+        if self.sim.world is not None:  # a world streams as its logs are written
+            self.rates_hz["ESC_TELEMETRY"] = self.sim.world.esc_stream_hz
+            self.rates_hz["SERVO_OUTPUT_RAW"] = self.sim.world.log_hz
         self._next_send: dict[str, float] = dict.fromkeys(self.rates_hz, 0.0)
         self.received: list[ReceivedMessage] = []
         self.sent_counts: dict[str, int] = {}

@@ -57,6 +57,8 @@ class MotorDynamics:
     restart_kick_s: float = 0.2
     #: time constant of the stall current's approach to its level [s]
     stall_current_tau_s: float = 0.05
+    #: scale of the stall current's ripple and wander (the paper's amperes; a larger motor's are larger)
+    stall_current_scale: float = 1.0
 
     @property
     def electrical_time_constant_s(self) -> float:
@@ -149,10 +151,12 @@ class MotorBank:
         torque = kick - d.hold_drag_nm_s * w - (cp * w**p.k + p.B * w + p.T_f)
         w_stall = np.maximum(w + dt * torque / (d.inertia_kg_m2 + dt * load_slope), 0.0)
         # The stall current: its level, a ripple with the retries, and (F4.2) a slow random wander.
-        self._stall_wander_a += -self._stall_wander_a * dt / 1.5 + 0.6 * np.sqrt(2 * dt / 1.5) * (
+        wander_sd_a = 0.6 * d.stall_current_scale
+        self._stall_wander_a += -self._stall_wander_a * dt / 1.5 + wander_sd_a * np.sqrt(2 * dt / 1.5) * (
             self.rng.standard_normal(self.n)
         )
-        ripple = np.where(fx.back_emf_lost, 0.35, 0.8) * np.sin(2 * np.pi * phase / d.restart_period_s)
+        ripple_a = np.where(fx.back_emf_lost, 0.35, 0.8) * d.stall_current_scale
+        ripple = ripple_a * np.sin(2 * np.pi * phase / d.restart_period_s)
         wander = np.where(fx.back_emf_lost, self._stall_wander_a, 0.25 * self._stall_wander_a)
         target = fx.stall_current_a * (1.0 + 0.0 * w) + ripple + wander
         blend = 1.0 - np.exp(-dt / d.stall_current_tau_s)

@@ -9,6 +9,7 @@
     seed = 1
     dt_s = 0.001              # physics step [s]
     motor = "paper_x2212"     # params/motors name or TOML path
+    world = 7                 # optional: fly a randomised world (sim/worlds.py) instead of motor/[flight]
 
     [testbed]                 # mode = "testbed"
     voltage_v = 4.2           # voltage applied to the motor (duty × supply)
@@ -21,11 +22,11 @@
     battery_cells = 3
     battery_capacity_mah = 5000.0
     battery_resistance_ohm = 0.02
-    [[flight.segment]]        # hover | climb | descend | translate, in order; then hover to the end
+    [[flight.segment]]        # hover | climb | descend | translate | yaw, in order; then hover to the end
     kind = "climb"
     duration_s = 5.0
     speed_m_s = 1.0
-    heading_deg = 0.0         # translate only
+    heading_deg = 0.0         # translate: direction of travel; yaw: the heading to turn to
 
     [[fault]]                 # any number
     kind = "F4.1"
@@ -44,6 +45,11 @@
     [output]
     esc_stream_hz = 10.0      # ESC_TELEMETRY message rate in .tlog files
     log_hz = 10.0             # vehicle records (RCOU, BAT, positions) per second
+
+With ``world`` set, the world supplies the vehicle, its motors, ESCs, battery, turbulence and telemetry
+(``[flight]`` keeps only ``start_alt_m`` and the segments, ``[sensors]`` only the dropouts, clock error and
+jitter); a world scenario without segments flies the world's own manoeuvre plan. The scenario name
+``world`` (or ``flight/world``) is that flight, built in: 150 s of the world's plan.
 """
 
 from __future__ import annotations
@@ -57,7 +63,16 @@ from ..errors import ConfigError
 from .faults import FaultSpec
 from .sensors import SensorSpec
 
-__all__ = ["TURBULENCE", "FlightSpec", "Scenario", "Segment", "load_scenario", "scenario_from_dict"]
+__all__ = [
+    "TURBULENCE",
+    "WORLD_SCENARIO_NAMES",
+    "FlightSpec",
+    "Scenario",
+    "Segment",
+    "load_scenario",
+    "scenario_from_dict",
+    "world_scenario",
+]
 
 #: turbulence presets: wind standard deviation [m/s], torque disturbance standard deviation [N·m],
 #: gyro noise the rate controller sees [rad/s] (vibration grows with rough air and hard manoeuvring)
@@ -66,7 +81,9 @@ TURBULENCE: dict[str, tuple[float, float, float]] = {
     "moderate": (1.5, 0.03, 0.12),
     "gusty": (3.5, 0.08, 0.35),
 }
-SEGMENT_KINDS = ("hover", "climb", "descend", "translate")
+SEGMENT_KINDS = ("hover", "climb", "descend", "translate", "yaw")
+#: names of the built-in scenario that flies a randomised world's own plan (:func:`world_scenario`)
+WORLD_SCENARIO_NAMES = ("world", "flight/world")
 
 
 @dataclass(frozen=True)
@@ -108,6 +125,8 @@ class Scenario:
     esc_stream_hz: float = 10.0
     log_hz: float = 10.0
     source: str = ""
+    #: seed of a randomised world (:func:`.worlds.draw_world`); None: ``motor`` and ``flight`` as given
+    world: int | None = None
 
     @property
     def n_motors(self) -> int:
@@ -124,12 +143,30 @@ class Scenario:
             "turbulence": self.flight.turbulence if self.mode == "flight" else None,
             "motors": self.n_motors,
             "faults": [f.to_dict() for f in self.faults],
-        }
+        } | ({} if self.world is None else {"world": self.world})
+
+
+def world_scenario(world: int | None = None, *, duration_s: float = 150.0) -> Scenario:
+    """The built-in flight of a randomised world: its own manoeuvre plan (no segments here), the noise
+    seeded by the world's seed, the ESC reports losing a sample now and then."""
+    return Scenario(
+        name="world" if world is None else f"world {world}",
+        mode="flight",
+        duration_s=duration_s,
+        seed=world if world is not None else 1,
+        dt_s=0.01,
+        sensors=SensorSpec(rate_hz=(10.0, 50.0), dropout=0.01, burst_per_hour=2.0),
+        world=world,
+        source="built-in",
+    )
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:
-    """A scenario from a TOML file, or by name from ``params/scenarios/`` (``testbed/F1.1_4.2V``)."""
+    """A scenario from a TOML file, or by name from ``params/scenarios/`` (``testbed/F1.1_4.2V``); the
+    names in :data:`WORLD_SCENARIO_NAMES` give :func:`world_scenario` (its world still to be chosen)."""
     path = Path(name_or_path)
+    if not path.exists() and str(name_or_path) in WORLD_SCENARIO_NAMES:
+        return world_scenario()
     if not path.exists() and path.suffix != ".toml":
         bundled = PARAMS_DIR / "scenarios" / f"{name_or_path}.toml"
         if bundled.exists():
@@ -157,7 +194,19 @@ def scenario_from_dict(data: dict[str, Any], path: Path | str = "<scenario>") ->
     seed = int(sc.number("seed", 1.0, minimum=0.0))
     dt = sc.number("dt_s", 0.001 if mode == "testbed" else 0.005, minimum=1e-5, maximum=0.02, unit="s")
     motor = sc.text("motor", "paper_x2212")
+    world_raw = sc.raw("world")
     sc.done()
+    world: int | None = None
+    if world_raw is not None:
+        if isinstance(world_raw, bool) or not isinstance(world_raw, int) or world_raw < 0:
+            raise ConfigError(
+                f"{world_raw!r}", path=path, key="scenario.world", expected="a seed, an integer >= 0"
+            )
+        if mode != "flight":
+            raise ConfigError(
+                "a world is a flying vehicle", path=path, key="scenario.world", expected="mode = 'flight'"
+            )
+        world = int(world_raw)
 
     tb = top.table("testbed")
     voltage = tb.number("voltage_v", 7.6, minimum=0.0, maximum=60.0, unit="V")
@@ -307,4 +356,5 @@ def scenario_from_dict(data: dict[str, Any], path: Path | str = "<scenario>") ->
         esc_stream_hz=esc_stream,
         log_hz=log_hz,
         source=str(path),
+        world=world,
     )

@@ -16,6 +16,12 @@
 
 The motor current in the CSV is the reading divided by the sample's duty, as the telemetry sources derive
 it (:func:`mav_motor_health.model.esc.motor_current_a`).
+
+A randomised world (:mod:`.worlds`) senses the current its own way (:class:`CurrentSensing`): the input
+or the motor (phase) current, averaged over the report interval or through a filter, with a gain error
+and an offset, or not at all (a constant reading). Its samples carry the autopilot's *command* besides
+the duty, and the motor current in them is the reading divided by the command, as a reader of a real log
+would compute it (the reader knows the command, not the duty).
 """
 
 from __future__ import annotations
@@ -27,11 +33,39 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from ..model.vehicle import CURRENT_SIDES
 from .steady import SensorNoise
 
-__all__ = ["EscSample", "EscSensors", "SensorSpec"]
+__all__ = ["CURRENT_AVERAGING", "CurrentSensing", "EscSample", "EscSensors", "SensorSpec"]
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
+#: how a world's ESC averages its current: over each report interval, or through a first-order filter
+CURRENT_AVERAGING = ("interval", "filter")
+
+
+@dataclass(frozen=True)
+class CurrentSensing:
+    """How an ESC senses and reports its current (a randomised world's; see :mod:`.worlds`).
+
+    ``side`` "input" (battery side, duty × motor current), "motor" (phase current) or "unusable" (a
+    constant ``constant_a``, as 4-in-1 ESCs without per-motor sensing report); the names are those of
+    :data:`mav_motor_health.model.vehicle.CURRENT_SIDES`. ``averaging`` "interval" (the mean since the
+    last report) or "filter" (first order, ``filter_s``). The reading is ``gain × true + offset_a`` plus
+    the noise, reported unsigned.
+    """
+
+    side: str = "input"
+    averaging: str = "filter"
+    filter_s: float = 0.02
+    gain: float = 1.0
+    offset_a: float = 0.0
+    constant_a: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.side not in CURRENT_SIDES:
+            raise ValueError(f"current side {self.side!r}: expected one of {CURRENT_SIDES}")
+        if self.averaging not in CURRENT_AVERAGING:
+            raise ValueError(f"current averaging {self.averaging!r}: expected one of {CURRENT_AVERAGING}")
 
 
 @dataclass(frozen=True)
@@ -47,6 +81,10 @@ class SensorSpec:
     burst_s: float = 1.0
     #: time constant of the ESC's current-sense filter [s] (0: none)
     current_filter_s: float = 0.02
+    #: input voltages [V] at which the current noise has its low and high half-widths
+    current_noise_voltage_v: tuple[float, float] = (4.0, 11.0)
+    #: a world's current sensing; None: the input current through ``current_filter_s``, no gain error
+    current_sensing: CurrentSensing | None = None
 
 
 class EscSample(NamedTuple):
@@ -63,6 +101,14 @@ class EscSample(NamedTuple):
     duty: float
     #: how many reports this ESC has sent (ESC_TELEMETRY "count")
     reports: int
+    #: the autopilot's command (0..1 of the PWM range); it differs from the duty where the ESC has an idle
+    #: offset (a world's). NaN where unknown: the duty stands in (:attr:`throttle`)
+    command: float = math.nan
+
+    @property
+    def throttle(self) -> float:
+        """The command as the autopilot logs it."""
+        return self.duty if math.isnan(self.command) else self.command
 
 
 class EscSensors:
@@ -77,10 +123,15 @@ class EscSensors:
             speed_rad_s=spec.speed_noise_rad_s,
             current_low_a=spec.current_noise_low_a,
             current_high_a=spec.current_noise_high_a,
+            voltage_low_v=spec.current_noise_voltage_v[0],
+            voltage_high_v=spec.current_noise_voltage_v[1],
         )
         self._burst_until = np.full(n, -1.0)
         self._next_min_s = float(self.next_s.min())
         self._filtered_a: NDArray[np.float64] | None = None
+        # a world's interval averaging: the integral of the current and the time since the last report
+        self._sum_a_s = np.zeros(n)
+        self._elapsed_s = np.zeros(n)
 
     def due(self, time_s: float) -> NDArray[np.bool_]:
         return self.next_s <= time_s
@@ -95,11 +146,21 @@ class EscSensors:
         bus_voltage_v: float,
         esc_temp_c: NDArray[np.float64],
         motor_temp_c: NDArray[np.float64],
+        command: NDArray[np.float64] | None = None,
     ) -> list[EscSample]:
-        """Reports of every ESC whose clock ticked by ``time_s`` (call once per simulation step)."""
-        # The ESC senses its input current (duty × motor current, signed) through a first-order filter.
-        input_a = duty * motor_current_a
-        tau = self.spec.current_filter_s
+        """Reports of every ESC whose clock ticked by ``time_s`` (call once per simulation step).
+
+        ``command`` is the autopilot's command where an ESC map makes it differ from ``duty``."""
+        sensing = self.spec.current_sensing
+        if sensing is None:
+            # The ESC senses its input current (duty × motor current, signed) through a first-order filter.
+            input_a = duty * motor_current_a
+            tau = self.spec.current_filter_s
+        else:
+            input_a = duty * motor_current_a if sensing.side == "input" else motor_current_a
+            tau = sensing.filter_s if sensing.averaging == "filter" else 0.0
+            self._sum_a_s += input_a * dt
+            self._elapsed_s += dt
         if tau > 0 and self._filtered_a is not None:
             self._filtered_a += (input_a - self._filtered_a) * (1.0 - math.exp(-dt / tau))
         else:
@@ -122,13 +183,20 @@ class EscSensors:
         w = omega_rad_s[due] + noise[0] * spec.speed_noise_rad_s
         # the noise as the paper measured it on the motor current, seen through the duty
         i_half = self.noise.current_halfwidth_a(d * bus_voltage_v)
-        esc_a = sensed_a[due] + d * noise[1] * i_half
-        esc_ca = np.rint(np.maximum(esc_a, 0.0) * 100.0)
-        motor_ca = np.where(
-            d > 0.02,
-            np.rint(esc_ca / np.maximum(d, 0.02)),
-            np.rint((motor_current_a[due] + noise[1] * i_half) * 100.0),
-        )
+        if sensing is None:
+            c = d
+            esc_a = sensed_a[due] + d * noise[1] * i_half
+            esc_ca = np.rint(np.maximum(esc_a, 0.0) * 100.0)
+            motor_ca = np.where(
+                d > 0.02,
+                np.rint(esc_ca / np.maximum(d, 0.02)),
+                np.rint((motor_current_a[due] + noise[1] * i_half) * 100.0),
+            )
+        else:
+            c = d if command is None else command[due]
+            esc_ca = self._world_reading_ca(sensing, due, sensed_a, d, noise[1] * i_half)
+            # as a reader of the log computes it: the reading over the command (it does not know the duty)
+            motor_ca = np.where(c > 0.02, np.rint(esc_ca / np.maximum(c, 0.02)), esc_ca)
         rpm = np.maximum(np.rint(w * RAD_S_TO_RPM), 0.0)
         volt_cv = round(bus_voltage_v * 100.0)
         self._next_min_s = float(self.next_s.min())
@@ -150,6 +218,30 @@ class EscSensors:
                     round(float(motor_temp_c[j])),
                     float(d[k]),
                     int(counts[j]),
+                    float(c[k]),
                 )
             )
         return out
+
+    def _world_reading_ca(
+        self,
+        sensing: CurrentSensing,
+        due: NDArray[np.intp],
+        sensed_a: NDArray[np.float64],
+        duty: NDArray[np.float64],
+        motor_noise_a: NDArray[np.float64],
+    ) -> NDArray[np.float64]:
+        """A world's current reading [cA] of the ESCs ``due`` to report (their interval averages reset)."""
+        if sensing.averaging == "interval":
+            mean_a = self._sum_a_s[due] / np.maximum(self._elapsed_s[due], 1e-12)
+            self._sum_a_s[due] = 0.0
+            self._elapsed_s[due] = 0.0
+        else:
+            mean_a = sensed_a[due]
+        if sensing.side == "unusable":
+            reading = np.full(due.size, sensing.constant_a)
+        else:
+            # the noise is the motor current's; an input-side sensor sees it through the duty
+            seen = duty * motor_noise_a if sensing.side == "input" else motor_noise_a
+            reading = sensing.gain * mean_a + sensing.offset_a + seen
+        return np.rint(np.maximum(reading, 0.0) * 100.0)

@@ -1,5 +1,9 @@
 """Writers for simulated flights: ``.tlog`` (MAVLink), ``.bin`` (ArduPilot DataFlash), ``.csv``; each
-with a ground-truth sidecar ``<file>.truth.json``. :func:`write_record` picks one by extension."""
+with a ground-truth sidecar ``<file>.truth.json``. :func:`write_record` picks one by extension.
+
+The logs show what a real vehicle's would: the autopilot's command (SERVO_OUTPUT_RAW, RCOU, the CSV's
+``throttle``), the ESCs' readings. A randomised world's truth (motor, ESC idle offset, current sensing,
+rates) is in the sidecar under ``world`` (:meth:`~mav_motor_health.sim.worlds.World.truth`)."""
 
 from __future__ import annotations
 
@@ -55,5 +59,7 @@ def write_record(record: SimRecord, path: str | Path, *, force: bool = False) ->
     data = record.scenario.truth()
     data["file"] = path.name
     data["esc_samples"] = len(record.esc)
+    if record.world is not None:
+        data["world"] = record.world.truth()
     truth.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     return path, truth

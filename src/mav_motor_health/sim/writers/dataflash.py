@@ -86,6 +86,8 @@ def write_dataflash(record: SimRecord, path: Path) -> None:
         w.add("PARM", 0, _text(name, 16), value, value)
     events: list[tuple[int, int, str, tuple[object, ...]]] = []
     seq = 0
+    # ArduPilot's estimate of the pack's resistance (a world's pack has its own)
+    pack_ohm = 0.02 if record.world is None else record.world.battery.resistance_ohm
     for v in record.vehicle:
         us = round(v.time_s * 1e6)
         pwm = list(v.pwm_us) + [0] * (14 - len(v.pwm_us))
@@ -107,7 +109,7 @@ def write_dataflash(record: SimRecord, path: Path) -> None:
                     v.consumed_mah,
                     wh,
                     2500,
-                    0.02,
+                    pack_ohm,
                     v.remaining_pct,
                     100,
                     100,

@@ -99,7 +99,8 @@ def write_tlog(record: SimRecord, path: Path) -> None:
             last_1hz = t
             add(t, heartbeat(mav))
             mv = round(v.bus_voltage_v * 1000)
-            ca = round(v.battery_current_a * 100)
+            # -1: not measured (MAVLink's convention; a testbed's supply has no monitor reading at t = 0)
+            ca = -1 if math.isnan(v.battery_current_a) else round(v.battery_current_a * 100)
             add(t, mav.sys_status_encode(0, 0, 0, 500, mv, ca, v.remaining_pct, 0, 0, 0, 0, 0, 0))
             cells = [65535] * 10
             cells[0] = mv
