@@ -362,9 +362,12 @@ def replay_log(
     _check_out_dir(out_dir, force)
     bar = Progress(log.name, progress)
     bar.update(0, 4, "reading")
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as recorded:
         warnings.simplefilter("always")
         table = sources.read(log)
+    # what the reader said of this log; a ResourceWarning is the garbage collector's word on some other
+    # object that happened to be collected meanwhile (catch_warnings records the whole process)
+    caught = [w for w in recorded if not issubclass(w.category, ResourceWarning)]
     warned = tuple(str(w.message) for w in caught)
     notes = warned
     if reissue_warnings:

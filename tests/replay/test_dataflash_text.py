@@ -28,6 +28,7 @@ def test_text_records_equal_dfreader_text(text_log: Path) -> None:
     theirs: dict[str, list[Any]] = defaultdict(list)
     while (msg := reader.recv_match(type=types)) is not None:
         theirs[msg.get_type()].append(msg)
+    reader.close()
     ours = read_text_records(text_log, types)
     for name in types:
         assert len(theirs[name]) == ours.counts[name] > 0, name
