@@ -1,14 +1,17 @@
-"""The agent's CPU cost per motor sample and its latency at 6 motors × 50 Hz, against baselines in the same run.
+"""The agent's CPU cost per motor sample and its latency at 6 motors × 50 Hz and × 200 Hz, against
+baselines in the same run.
 
-    PYTHONPATH=src python benchmarks/bench_agent.py [--seconds 60] [--live-seconds 10]
+    PYTHONPATH=src python benchmarks/bench_agent.py [--seconds 60] [--live-seconds 10] [--rates 50 200]
 
-1. **CPU per sample** (replay of a synthetic 6 × 50 Hz flight written as a .tlog through the agent's real
-   feeding path: reader thread, MAVLink parsing, SampleAssembler, HealthMonitor → the diagnosis core), for
-   several ``batch_s``. Baseline: the cost of only parsing the same MAVLink bytes with pymavlink. Process
-   CPU time (all threads), so the reader thread is included.
-2. **Live**: the agent on a UDP socket with a vehicle in a separate process streaming 6 × 50 Hz; the
-   agent process's CPU share of one core over the run, and latency from a sample's arrival (reader thread)
-   to its diagnosis, and from fault onset in the vehicle to the STATUSTEXT back at the vehicle.
+1. **CPU per sample** (replay of a synthetic six-motor flight at each rate, written as a .tlog, through
+   the agent's real feeding path: reader thread, MAVLink parsing, SampleAssembler, HealthMonitor → the
+   diagnosis core, all motors of a batch in one core call), for several ``batch_s``. Baseline: the cost
+   of only parsing the same MAVLink bytes with pymavlink. Process CPU time (all threads), so the reader
+   thread is included.
+2. **Live**: the agent on a UDP socket with a vehicle in a separate process streaming 6 motors at each
+   rate, with the default ``batch_s`` (0.1 s) and with ``batch_s`` = 0.02 s; the agent process's CPU
+   share of one core over the run, and latency from a sample's arrival (reader thread) to its diagnosis,
+   and from fault onset in the vehicle to the STATUSTEXT back at the vehicle.
 3. **Raspberry Pi 4 estimate**: the same run times the benchmarks-game n-body program in pure Python; a
    Raspberry Pi 4 at 1.5 GHz takes 158.3 s for 5,000,000 steps (chaitanyamehta.github.io, "Performance
    Analysis of Languages on Raspberry Pi", performance governor). The ratio of that to this machine's
@@ -19,6 +22,8 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
+import io
 import math
 import multiprocessing as mp
 import statistics
@@ -41,16 +46,19 @@ from mav_motor_health.publish import dialect  # noqa: E402
 
 PI4_NBODY_S = 158.263  # 5,000,000 steps, Raspberry Pi 4 @ 1.5 GHz, performance governor (see docstring)
 PI4_NBODY_STEPS = 5_000_000
-MOTORS, RATE_HZ = 6, 50.0
+MOTORS = 6
+#: batch_s values timed in the replay part, per rate (one sample per core call is too slow to time at 200 Hz)
+BATCHES = {50.0: (0.0, 0.02, 0.05, 0.1, 0.2), 200.0: (0.02, 0.1)}
+LIVE_BATCHES = (0.1, 0.02)
 
 
 # -- 1. a synthetic flight as a .tlog ----------------------------------------------------------------
-def write_flight(path: Path, seconds: float, seed: int = 3) -> int:
+def write_flight(path: Path, seconds: float, rate_hz: float = 50.0, seed: int = 3) -> int:
     params = load_motor_params("paper_x2212")
     rng = np.random.default_rng(seed)
     mav = mavlink2.MAVLink(None, 1, 1)
-    ticks = int(seconds * RATE_HZ)
-    t = np.arange(ticks) / RATE_HZ
+    ticks = int(seconds * rate_hz)
+    t = np.arange(ticks) / rate_hz
     throttle = 0.55 + 0.1 * (np.sin(2 * np.pi * t / 20) > 0) + 0.003 * np.sin(2 * np.pi * 0.7 * t)
     pwm = np.round(1000 + 1000 * throttle).astype(int)
     u = (pwm - 1000) / 1000
@@ -64,7 +72,7 @@ def write_flight(path: Path, seconds: float, seed: int = 3) -> int:
 
     put(stamp0 - 1000, mav.heartbeat_encode(13, 3, 0, 0, 4))
     for k in range(ticks):
-        stamp = stamp0 + int(k * 1e6 / RATE_HZ)
+        stamp = stamp0 + int(k * 1e6 / rate_hz)
         put(stamp, mav.servo_output_raw_encode(k, 0, *([int(pwm[k])] * MOTORS + [0] * 2)))
         rpm = np.round((model.omega_rad_s[k] + rng.uniform(-6, 6, 8)) * 60 / (2 * math.pi)).astype(int)
         ca = np.round((model.current_a[k] + rng.uniform(-0.08, 0.08, 8)) * u[k] * 100).astype(int)
@@ -131,7 +139,7 @@ def _vehicle(port_queue: mp.Queue, commands: mp.Queue) -> None:
             port_queue.put(seen)
 
 
-def live(seconds: float) -> dict[str, float]:
+def live(seconds: float, rate_hz: float, batch_s: float) -> dict[str, float]:
     ctx = mp.get_context("spawn")
     ports, commands = ctx.Queue(), ctx.Queue()
     proc = ctx.Process(target=_vehicle, args=(ports, commands), daemon=True)
@@ -142,15 +150,15 @@ def live(seconds: float) -> dict[str, float]:
 
     async def main() -> tuple[float, float]:
         config = load_agent_config(None, connect=f"udpout:127.0.0.1:{port}", profile="flight")
-        # the test vehicle's ESCs report at the stream rate: ask for RATE_HZ to diagnose 6 × RATE_HZ samples
+        # the test vehicle's ESCs report at the stream rate: ask for rate_hz to diagnose 6 × rate_hz samples
         # (the agent's default asks for 200 Hz, which with ESCs reporting at 10–50 Hz adds only parsing)
-        config = config.with_overrides(esc_rate_hz=RATE_HZ)
+        config = config.with_overrides(esc_rate_hz=rate_hz, batch_s=batch_s)
 
         def on_row(row: dict) -> None:
             latencies.append(time.monotonic() - row["time_s"])
 
         async with Agent(config, on_row=on_row) as agent:
-            while agent.monitor.samples < 600:  # warm-up: streams requested, parameters read
+            while agent.monitor.samples < 2 * MOTORS * rate_hz:  # warm-up: streams requested, parameters read
                 await asyncio.sleep(0.1)
             latencies.clear()
             cpu0, wall0 = time.process_time(), time.monotonic()
@@ -237,46 +245,52 @@ def nbody(steps: int) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--seconds", type=float, default=60.0, help="length of the replayed flight")
-    ap.add_argument("--live-seconds", type=float, default=10.0, help="length of the live run")
+    ap.add_argument("--seconds", type=float, default=60.0, help="length of the replayed flights")
+    ap.add_argument("--live-seconds", type=float, default=10.0, help="length of each live run")
+    ap.add_argument("--rates", type=float, nargs="+", default=[50.0, 200.0], help="ESC rates [Hz]")
     ap.add_argument("--nbody-steps", type=int, default=300_000)
     args = ap.parse_args(argv)
 
     print(
-        f"python {sys.version.split()[0]} on {sys.platform}; flight {args.seconds:.0f} s, {MOTORS} motors x {RATE_HZ:.0f} Hz"
+        f"python {sys.version.split()[0]} on {sys.platform}; flights of {args.seconds:.0f} s, {MOTORS} motors"
     )
+    replay: dict[tuple[float, float], float] = {}
+    parse: dict[float, float] = {}
+    print("\n1. CPU per motor sample, replay through the agent's feeding path")
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "flight.tlog"
-        n_samples = write_flight(path, args.seconds)
-        parse_s, n_msgs = parse_only(path)
-        per_parse = parse_s / n_samples
-        print(f"\n1. CPU per motor sample (replay of {n_samples} samples, {n_msgs} MAVLink messages)")
-        print(f"   baseline, parsing the MAVLink bytes only: {1e6 * per_parse:8.1f} us/sample")
-        results = {}
-        for batch_s in (0.0, 0.05, 0.1, 0.2):
-            cpu_s, samples = agent_replay(path, batch_s)
-            assert samples == n_samples, (samples, n_samples)
-            results[batch_s] = cpu_s / samples
-            print(
-                f"   agent, batch_s = {batch_s:4.2f} s:                {1e6 * cpu_s / samples:8.1f} us/sample"
-                f"  ({cpu_s / samples / per_parse:5.1f}x parsing; {100 * cpu_s / samples * MOTORS * RATE_HZ:5.1f} % of a core"
-                f" at {MOTORS}x{RATE_HZ:.0f} Hz)"
-            )
+        for rate in args.rates:
+            path = Path(tmp) / f"flight_{rate:.0f}.tlog"
+            n_samples = write_flight(path, args.seconds, rate)
+            parse_s, n_msgs = parse_only(path)
+            parse[rate] = per_parse = parse_s / n_samples
+            print(f"   {MOTORS} x {rate:.0f} Hz ({n_samples} samples, {n_msgs} MAVLink messages)")
+            print(f"     baseline, parsing the MAVLink bytes only: {1e6 * per_parse:8.1f} us/sample")
+            for batch_s in BATCHES.get(rate, (0.02, 0.1)):
+                with contextlib.redirect_stdout(io.StringIO()):  # the agent's state changes at the end
+                    cpu_s, samples = agent_replay(path, batch_s)
+                assert samples == n_samples, (samples, n_samples)
+                replay[rate, batch_s] = cpu_s / samples
+                print(
+                    f"     agent, batch_s = {batch_s:4.2f} s:                {1e6 * cpu_s / samples:8.1f} us/sample"
+                    f"  ({cpu_s / samples / per_parse:5.1f}x parsing; {100 * cpu_s / samples * MOTORS * rate:5.1f} % of"
+                    f" a core at {MOTORS}x{rate:.0f} Hz)"
+                )
 
     print(
-        f"\n2. live over UDP, {MOTORS} motors x {RATE_HZ:.0f} Hz, default config with esc_rate_hz = {RATE_HZ:.0f} (batch_s = 0.1 s), {args.live_seconds:.0f} s"
+        f"\n2. live over UDP, {MOTORS} motors, default config with esc_rate_hz = the rate, {args.live_seconds:.0f} s each"
     )
-    figures = live(args.live_seconds)
-    print(f"   samples diagnosed: {figures['samples_per_s']:.0f} /s")
-    print(f"   agent process CPU: {100 * figures['cpu_share']:.1f} % of one core (this machine)")
-    print(
-        f"   sample arrival -> diagnosed: p50 {figures['lat_p50_ms']:.0f} ms, p95 {figures['lat_p95_ms']:.0f} ms,"
-        f" max {figures['lat_max_ms']:.0f} ms"
-    )
-    print(
-        f"   fault onset in the vehicle -> STATUSTEXT back at the vehicle: median {figures['detect_median_ms']:.0f} ms,"
-        f" max {figures['detect_max_ms']:.0f} ms ({figures['detections']} faults)"
-    )
+    figures: dict[tuple[float, float], dict[str, float]] = {}
+    for rate in args.rates:
+        for batch_s in LIVE_BATCHES:
+            with contextlib.redirect_stdout(io.StringIO()):
+                got = figures[rate, batch_s] = live(args.live_seconds, rate, batch_s)
+            print(
+                f"   {MOTORS} x {rate:.0f} Hz, batch_s = {batch_s:4.2f} s: {got['samples_per_s']:5.0f} samples/s diagnosed;"
+                f" agent process {100 * got['cpu_share']:5.1f} % of one core (this machine); arrival -> diagnosed"
+                f" p50 {got['lat_p50_ms']:.0f} ms, p95 {got['lat_p95_ms']:.0f} ms, max {got['lat_max_ms']:.0f} ms;"
+                f" fault -> STATUSTEXT median {got['detect_median_ms']:.0f} ms, max {got['detect_max_ms']:.0f} ms"
+                f" ({got['detections']} faults)"
+            )
 
     nbody_s = nbody(args.nbody_steps)
     factor = (PI4_NBODY_S / PI4_NBODY_STEPS) / (nbody_s / args.nbody_steps)
@@ -285,11 +299,17 @@ def main(argv: list[str] | None = None) -> int:
         f"   n-body here: {nbody_s:.2f} s for {args.nbody_steps} steps; Pi 4 (published): {PI4_NBODY_S} s for"
         f" {PI4_NBODY_STEPS} -> a Pi 4 core is ~{factor:.1f}x slower for pure Python"
     )
-    print(f"   agent live CPU share on a Pi 4 core: ~{100 * figures['cpu_share'] * factor:.0f} %")
-    print(
-        f"   diagnosis path alone (replay, batch_s 0.1): ~{100 * results[0.1] * MOTORS * RATE_HZ * factor:.0f} % of a"
-        f" Pi 4 core; one by one (batch_s 0): ~{100 * results[0.0] * MOTORS * RATE_HZ * factor:.0f} %"
-    )
+    for rate in args.rates:
+        live_part = "; ".join(
+            f"batch_s {batch_s:.2f}: ~{100 * figures[rate, batch_s]['cpu_share'] * factor:.0f} %"
+            for batch_s in LIVE_BATCHES
+        )
+        replay_part = ", ".join(
+            f"batch_s {batch_s:.2f}: ~{100 * replay[rate, batch_s] * MOTORS * rate * factor:.0f} %"
+            for batch_s in BATCHES.get(rate, (0.02, 0.1))
+        )
+        print(f"   {MOTORS} x {rate:.0f} Hz, the whole agent live on a Pi 4 core: {live_part}")
+        print(f"   {MOTORS} x {rate:.0f} Hz, the feeding path alone (replay) on a Pi 4 core: {replay_part}")
     return 0
 
 

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..diagnosis.pipeline import StreamingDiagnoser
+from ..diagnosis.pipeline import MotorBatch, StreamingDiagnoser
 from ..diagnosis.plausibility import CurrentSumCheck, SensorIssue
 from ..diagnosis.profile import ThresholdProfile
 from ..diagnosis.states import MotorState
@@ -85,8 +85,9 @@ class HealthMonitor:
         return rows[0], (changes[0] if changes else None)
 
     def feed_many(self, samples: list[MotorSample]) -> tuple[list[dict[str, Any]], list[StateChange]]:
-        """Diagnose samples (each motor's in time order) in one core call per motor: same results as one
-        by one (the core carries its state), a fraction of the overhead. Returns rows and changes."""
+        """Diagnose samples (each motor's in time order) in one core call for all motors: same results as
+        one by one (the core carries each motor's state), a fraction of the overhead. Returns rows and
+        changes."""
         by_motor: dict[int, list[MotorSample]] = {}
         sum_flags: dict[int, list[int]] = {}
         for sample in samples:
@@ -109,7 +110,7 @@ class HealthMonitor:
         for sample, bad in zip(samples, mismatch.tolist()):
             by_motor.setdefault(sample.motor, []).append(sample)
             sum_flags.setdefault(sample.motor, []).append(int(SensorIssue.CURRENT_SUM) if bad else 0)
-        results: dict[int, dict[str, NDArray]] = {}
+        batches: dict[int, MotorBatch] = {}
         for motor, group in by_motor.items():
             arrays = {
                 name: np.array([getattr(s, name) for s in group], dtype=float)
@@ -125,8 +126,7 @@ class HealthMonitor:
                 )
             }
             arrays = calibrate_columns(arrays, self.esc, self.current)
-            results[motor] = self.diagnoser.update_many(
-                motor,
+            batches[motor] = MotorBatch(
                 arrays["time_s"],
                 arrays["voltage_v"],
                 arrays["omega_rad_s"],
@@ -137,6 +137,8 @@ class HealthMonitor:
                 extra_flags=np.array(sum_flags[motor], dtype=np.int16),
                 context=arrays,  # what a model with fitted effects may read (temperatures, throttle...)
             )
+        # every motor's samples in one core call (the same results as motor by motor)
+        results: dict[int, dict[str, NDArray]] = self.diagnoser.update_motors(batches)
         # the vehicle check across motors, in arrival order, as replay runs it over the whole log
         position = {motor: 0 for motor in by_motor}
         index = []
@@ -161,7 +163,7 @@ class HealthMonitor:
         changes: list[StateChange] = []
         for motor, group in by_motor.items():
             status = self.status[motor]
-            cols = results[motor]
+            cols = {name: values.tolist() for name, values in results[motor].items()}  # Python values
             for k, sample in enumerate(group):
                 row: dict[str, Any] = {
                     "time_s": sample.time_s,
@@ -172,14 +174,15 @@ class HealthMonitor:
                     "bus_voltage_v": sample.bus_voltage_v,
                     "throttle": sample.throttle,
                     "esc_current_a": sample.esc_current_a,
-                    **{name: values[k].item() for name, values in cols.items()},
+                    **{name: values[k] for name, values in cols.items()},
                 }
                 rows.append(row)
                 status.row = row
                 status.last_sample_s = sample.time_s
-                change = self._publish(status, MotorState(int(row["announced"])), sample.time_s, row)
-                if change is not None:
-                    changes.append(change)
+                if row["announced"] != status.state:
+                    change = self._publish(status, MotorState(row["announced"]), sample.time_s, row)
+                    if change is not None:
+                        changes.append(change)
             self.samples += len(group)
         changes.sort(key=lambda c: c.time_s)
         return rows, changes

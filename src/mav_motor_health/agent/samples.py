@@ -80,12 +80,18 @@ class SampleAssembler:
 
     def _update_mapping(self) -> None:
         self.pwm_low, self.pwm_high = mavlink_esc.pwm_range(self.params)
+        functions = self.params if self._has_functions() else None
         # PWM for a motor comes from the output that drives it
         self.output_of_motor: dict[int, int] = {}
         for output in range(16, 0, -1):
-            motor = mavlink_esc.motor_for_output(output, self.params if self._has_functions() else None)
+            motor = mavlink_esc.motor_for_output(output, functions)
             if motor is not None:
                 self.output_of_motor[motor] = output
+        # the motor of each ESC_TELEMETRY slot (one message per four outputs), worked out once per change
+        self._slot_motors = {
+            first: [mavlink_esc.motor_for_output(first + j + 1, functions) for j in range(4)]
+            for first in set(mavlink_esc.ESC_TELEMETRY_MESSAGES.values())
+        }
 
     def _has_functions(self) -> bool:
         return any(k.startswith("SERVO") and k.endswith("_FUNCTION") for k in self.params)
@@ -97,14 +103,7 @@ class SampleAssembler:
             first = mavlink_esc.ESC_TELEMETRY_MESSAGES[kind]
             return self._esc(
                 time_s,
-                [
-                    (
-                        mavlink_esc.motor_for_output(
-                            first + j + 1, self.params if self._has_functions() else None
-                        )
-                    )
-                    for j in range(4)
-                ],
+                self._slot_motors[first],
                 [float(x) for x in msg.rpm],
                 [float(x) for x in msg.voltage],
                 [float(x) for x in msg.current],
@@ -195,20 +194,36 @@ class SampleAssembler:
         )
         # an ESC that does not measure its input voltage: use the battery monitor's
         bus = np.where(si["bus_voltage_v"] > 0, si["bus_voltage_v"], self.battery_v)
-        throttle = np.array([self.throttle(motors[j]) for j in slots])  # type: ignore[arg-type]
+        # the commands of the slots' motors in one call (NaN: no command seen for its output yet)
+        pwm = [self._pwm_of(motors[j]) for j in slots]  # type: ignore[arg-type]
+        throttle = mavlink_esc.throttle_from_pwm(pwm, self.pwm_low, self.pwm_high)
         voltage, current = mavlink_esc.motor_inputs(throttle, bus, si["esc_current_a"])
         return [
             MotorSample(
-                motor=int(motors[j]),  # type: ignore[arg-type]
+                motor=int(motors[j]),
                 time_s=time_s,
-                omega_rad_s=float(si["omega_rad_s"][k]),
-                current_a=float(current[k]),
-                voltage_v=float(voltage[k]),
-                bus_voltage_v=float(bus[k]),
-                throttle=float(throttle[k]),
-                esc_current_a=float(si["esc_current_a"][k]),
-                esc_temp_c=float(si["esc_temp_c"][k]),
+                omega_rad_s=omega,
+                current_a=motor_a,
+                voltage_v=volts,
+                bus_voltage_v=bus_v,
+                throttle=command,
+                esc_current_a=esc_a,
+                esc_temp_c=temp,
                 battery_current_a=self.battery_a,
             )
-            for k, j in enumerate(slots)
+            for j, omega, motor_a, volts, bus_v, command, esc_a, temp in zip(
+                slots,
+                si["omega_rad_s"].tolist(),
+                current.tolist(),
+                voltage.tolist(),
+                bus.tolist(),
+                throttle.tolist(),
+                si["esc_current_a"].tolist(),
+                si["esc_temp_c"].tolist(),
+            )
         ]
+
+    def _pwm_of(self, motor: int) -> float:
+        output = self.output_of_motor.get(motor)
+        pwm = self.pwm_us.get(output) if output is not None else None
+        return math.nan if pwm is None else pwm

@@ -1,12 +1,21 @@
 """Diagnosis: steady-state rule, the fault decision tree, persistence and profiles."""
 
-from .pipeline import DIAGNOSIS_COLUMNS, MotorCarry, StreamingDiagnoser, diagnose, diagnose_motor
+from .pipeline import (
+    DIAGNOSIS_COLUMNS,
+    MotorBatch,
+    MotorCarry,
+    StreamingDiagnoser,
+    diagnose,
+    diagnose_motor,
+    diagnose_motors,
+)
 from .profile import PersistenceRule, SteadyRule, ThresholdProfile
 from .states import MotorState, state_names
 from .tree import classify
 
 __all__ = [
     "DIAGNOSIS_COLUMNS",
+    "MotorBatch",
     "MotorCarry",
     "MotorState",
     "PersistenceRule",
@@ -16,5 +25,6 @@ __all__ = [
     "classify",
     "diagnose",
     "diagnose_motor",
+    "diagnose_motors",
     "state_names",
 ]

@@ -28,10 +28,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..model.balance import linearised_slopes
-from ..model.dynamics import ResponseCarry, first_order_response
+from ..model.dynamics import ResponseCarry, first_order_responses, previous
 from ..model.params import MotorParams
 
-__all__ = ["PairingCarry", "pairing_error_rad_s"]
+__all__ = ["PairingCarry", "pairing_error_rad_s", "pairing_error_rows"]
 
 
 @dataclass(frozen=True)
@@ -55,22 +55,50 @@ def pairing_error_rad_s(
     """The speed deviation a command ``pairing_s`` off could cause, per sample (see the module doc)."""
     carry = carry or PairingCarry()
     t = np.asarray(time_s, dtype=float)
-    v = np.asarray(voltage_v, dtype=float)
     if t.size == 0:
         return np.zeros(0), carry
-    previous_t = np.concatenate([[carry.time_s], t[:-1]])
-    previous_v = np.concatenate([[carry.voltage_v], v[:-1]])
+
+    def row(x: ArrayLike) -> NDArray[np.float64]:
+        return np.broadcast_to(np.asarray(x, dtype=float), t.shape).reshape(1, -1)
+
+    error, (new,) = pairing_error_rows(
+        params, row(t), row(voltage_v), row(omega_model_rad_s), pairing_s, row(tau_s), [carry]
+    )
+    return error[0], new
+
+
+def pairing_error_rows(
+    params: MotorParams,
+    time_s: NDArray[np.float64],
+    voltage_v: NDArray[np.float64],
+    omega_model_rad_s: NDArray[np.float64],
+    pairing_s: float,
+    tau_s: NDArray[np.float64],
+    carries: list[PairingCarry],
+    lengths: list[int] | None = None,
+) -> tuple[NDArray[np.float64], list[PairingCarry]]:
+    """:func:`pairing_error_rad_s` of several motors at once: rows of samples (2-D), one carry per row;
+    ``lengths`` each row's number of samples (None: all; the rest is padding after them)."""
+    t, v = time_s, voltage_v
+    rows, n = t.shape
+    counts = [n] * rows if lengths is None else lengths
+    previous_t = previous(t, [c.time_s for c in carries])
+    previous_v = previous(v, [c.voltage_v for c in carries])
     with np.errstate(divide="ignore", invalid="ignore"):
         rate = np.abs(v - previous_v) / (t - previous_t)
     rate = np.where(np.isfinite(rate) & (t > previous_t), rate, np.nan)  # NaN holds the low-pass
-    mean_rate, rate_carry = first_order_response(t, rate, tau_s, carry.rate)
+    mean_rate, rate_carries = first_order_responses(t, rate, tau_s, [c.rate for c in carries], counts)
     _, d = linearised_slopes(params, omega_model_rad_s)
     error = params.k_t * np.nan_to_num(mean_rate) * pairing_s / d
     finite = np.isfinite(v)
-    last = np.flatnonzero(finite)
-    new = PairingCarry(
-        time_s=float(t[last[-1]]) if last.size else carry.time_s,
-        voltage_v=float(v[last[-1]]) if last.size else carry.voltage_v,
-        rate=rate_carry,
-    )
-    return error, new
+    news = []
+    for r, (carry, count) in enumerate(zip(carries, counts)):
+        last = np.flatnonzero(finite[r, :count])
+        news.append(
+            PairingCarry(
+                time_s=float(t[r, last[-1]]) if last.size else carry.time_s,
+                voltage_v=float(v[r, last[-1]]) if last.size else carry.voltage_v,
+                rate=rate_carries[r],
+            )
+        )
+    return error, news

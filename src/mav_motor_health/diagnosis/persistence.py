@@ -4,6 +4,12 @@ The announced state is what the live agent publishes and what replay writes as `
 *eligible* samples count (steady ones, plus states the profile allows in transients); other samples keep
 the announcement as it is and neither confirm nor break a run. The rule carries its state between calls,
 so streaming one sample at a time and replaying whole arrays give identical results.
+
+Whole arrays are judged with numpy for all runs at once: the announcement is the state of the latest run
+that reached its hold, and a run with a rate reaches it where its own sum of rate·Δt does (one cumulative
+sum over all runs finds the few that come near; only those are summed run by run, as the hold is
+defined, so that the result is exact). A few samples (the live agent's) run sample by sample in plain
+Python; both give the same announcements and carries.
 """
 
 from __future__ import annotations
@@ -16,6 +22,9 @@ from numpy.typing import NDArray
 from .states import MotorState
 
 __all__ = ["PersistenceCarry", "announce", "run_hold"]
+
+#: Up to this many samples (the live agent's batches) the rule runs sample by sample in plain Python
+_SCALAR_MAX = 32
 
 
 @dataclass(frozen=True)
@@ -54,53 +63,145 @@ def announce(
     """
     t = np.asarray(time_s, dtype=float)
     s = np.asarray(state, dtype=np.int64)
+    if t.size <= _SCALAR_MAX:
+        return _announce_scalar(hold_s, t, s, eligible, carry, max_gap_s, hold_per_activity_s, activity, rate)
     idx = np.flatnonzero(eligible)
-    change_at: list[int] = []
-    change_to: list[int] = []
-    announced, candidate, since = carry.announced, carry.candidate, carry.candidate_since_s
-    held_s = carry.candidate_held_s
-    if idx.size:
-        te, se = t[idx], s[idx]
-        boundaries = np.flatnonzero((np.diff(se) != 0) | (np.diff(te) > max_gap_s)) + 1
-        starts = np.concatenate([[0], boundaries])
-        ends = np.concatenate([boundaries, [se.size]])
-        for start, end in zip(starts.tolist(), ends.tolist()):
-            run_state = int(se[start])
-            continues = start == 0 and run_state == candidate and te[0] - carry.last_eligible_s <= max_gap_s
-            run_since = since if continues else float(te[start])
-            candidate, since = run_state, run_since
-            # the hold each sample of the run has reached: its time since the run began, or Σ rate·Δt
-            if rate is not None:
-                steps = np.diff(te[start:end], prepend=carry.last_eligible_s if continues else te[start])
-                held = (held_s if continues else 0.0) + np.cumsum(rate[idx[start:end]] * steps)
-            else:
-                held = te[start:end] - run_since
-            held_s = float(held[-1])
-            if run_state == announced:
-                continue
-            hold = float(hold_s[run_state])
-            extra = None  # the hold added by the input activity at each sample
-            if hold_per_activity_s is not None and activity is not None and hold_per_activity_s[run_state]:
-                extra = float(hold_per_activity_s[run_state]) * np.nan_to_num(activity[idx[start:end]])
-            if rate is None and extra is None:
-                # a fixed hold in time: the first sample at or after it
-                j = start + int(np.searchsorted(te[start:end], run_since + hold, side="left"))
-            else:
-                need = hold if extra is None else hold + extra
-                reached = np.flatnonzero(held >= need)
-                j = start + (int(reached[0]) if reached.size else end - start)
-            if j < end:
-                announced = run_state
-                change_at.append(int(idx[j]))
-                change_to.append(run_state)
     out = np.full(t.size, carry.announced, dtype=np.int8)
-    if change_at:
-        positions = np.asarray(change_at)
-        which = np.searchsorted(positions, np.arange(t.size), side="right") - 1
-        values = np.asarray(change_to, dtype=np.int8)
-        has = which >= 0
-        out[has] = values[which[has]]
-    last = float(t[idx[-1]]) if idx.size else carry.last_eligible_s
+    if idx.size == 0:
+        return out, carry
+    te, se = t[idx], s[idx]
+    # The runs of one state among the eligible samples; only the first may continue the carried one
+    boundaries = np.flatnonzero((se[1:] != se[:-1]) | (te[1:] - te[:-1] > max_gap_s)) + 1
+    starts = np.concatenate([[0], boundaries])
+    ends = np.concatenate([boundaries, [se.size]])
+    run_state = se[starts]
+    continues = bool(run_state[0] == carry.candidate and te[0] - carry.last_eligible_s <= max_gap_s)
+    run_since = te[starts]
+    if continues:
+        run_since[0] = carry.candidate_since_s
+    lengths = ends - starts
+    run_of = np.repeat(np.arange(starts.size), lengths)  # each eligible sample's run
+    hold = np.asarray(hold_s, dtype=float)[run_state]
+    slope = None  # the hold added per volt of input activity, per run (None: no state has one)
+    if hold_per_activity_s is not None and activity is not None:
+        slope = np.asarray(hold_per_activity_s, dtype=float)[run_state]
+        if not slope.any():
+            slope = None
+    held_carried = carry.candidate_held_s if continues else 0.0
+    first_step = te[0] - carry.last_eligible_s if continues else 0.0
+    if rate is None:
+        # the hold each sample of its run has reached is its time since the run began
+        since = run_since[run_of]
+        reached = te >= since + hold[run_of]  # a fixed hold in time: the first sample at or after it
+        if slope is not None:
+            extra = slope[run_of] * np.nan_to_num(np.asarray(activity, dtype=float)[idx])
+            by_activity = (slope != 0)[run_of]
+            reached = np.where(by_activity, te - since >= hold[run_of] + extra, reached)
+        first_reached = _first_true_per_run(reached, starts, ends)
+        held_last = float(te[-1] - run_since[-1])
+    else:
+        # Σ rate·Δt over each run (run by run, as the hold is defined: exact for the runs that matter)
+        steps = np.empty(te.size)
+        steps[0] = first_step
+        steps[1:] = te[1:] - te[:-1]
+        steps[starts[1:]] = 0.0
+        weighted = np.asarray(rate, dtype=float)[idx] * steps
+        need = hold[run_of]
+        if slope is not None:
+            need = need + slope[run_of] * np.nan_to_num(np.asarray(activity, dtype=float)[idx])
+        candidates = _runs_near_hold(weighted, need, starts, ends, held_carried)
+        first_reached = np.full(starts.size, -1, dtype=np.int64)
+        for r in candidates.tolist():
+            start, end = int(starts[r]), int(ends[r])
+            held = (held_carried if r == 0 else 0.0) + np.cumsum(weighted[start:end])
+            found = np.flatnonzero(held >= need[start:end])
+            if found.size:
+                first_reached[r] = start + int(found[0])
+        last_start = int(starts[-1])
+        held_last = float(
+            ((held_carried if starts.size == 1 else 0.0) + np.cumsum(weighted[last_start:]))[-1]
+        )
+    # A run that reaches its hold announces its state there (a run of the state already announced changes
+    # nothing): the announcement is the state of the latest run that reached its hold
+    announcing = np.flatnonzero(first_reached >= 0)
+    announced = carry.announced
+    if announcing.size:
+        at = idx[first_reached[announcing]]
+        values = run_state[announcing].astype(np.int8)
+        latest = np.maximum.accumulate(np.where(_marks(at, t.size), np.arange(t.size), -1))
+        value_at = np.full(t.size, carry.announced, dtype=np.int8)
+        value_at[at] = values
+        has = latest >= 0
+        out[has] = value_at[latest[has]]
+        announced = int(values[-1])
+    return out, PersistenceCarry(
+        announced=announced,
+        candidate=int(run_state[-1]),
+        candidate_since_s=float(run_since[-1]),
+        last_eligible_s=float(te[-1]),
+        candidate_held_s=held_last,
+    )
+
+
+def _announce_scalar(
+    hold_s: NDArray[np.float64],
+    t: NDArray[np.float64],
+    s: NDArray[np.int64],
+    eligible: NDArray[np.bool_],
+    carry: PersistenceCarry,
+    max_gap_s: float,
+    hold_per_activity_s: NDArray[np.float64] | None,
+    activity: NDArray[np.float64] | None,
+    rate: NDArray[np.float64] | None,
+) -> tuple[NDArray[np.int8], PersistenceCarry]:
+    """:func:`announce` for a few samples, sample by sample: the same runs, holds and announcements.
+
+    A run's hold with a rate is its carried hold plus the sum of rate·Δt since this call began, summed
+    in the same order as the run-by-run form, so that both give the same numbers."""
+    holds = np.asarray(hold_s, dtype=float).tolist()
+    slopes = None
+    acts: list[float] = []  # the activities, worked out when a hold first needs them
+    if hold_per_activity_s is not None and activity is not None:
+        slopes = np.asarray(hold_per_activity_s, dtype=float).tolist()
+    rates = None if rate is None else np.asarray(rate, dtype=float).tolist()
+    out = np.empty(t.size, dtype=np.int8)
+    announced, candidate, since = carry.announced, carry.candidate, carry.candidate_since_s
+    last = carry.last_eligible_s
+    base, summed = carry.candidate_held_s, 0.0  # a run's hold: base + Σ rate·Δt within this call
+    first = True
+    for k, (tk, sk, ok) in enumerate(zip(t.tolist(), s.tolist(), np.asarray(eligible, dtype=bool).tolist())):
+        if ok:
+            if first:
+                new_run = not (sk == candidate and tk - last <= max_gap_s)
+            else:
+                new_run = sk != candidate or tk - last > max_gap_s
+            if new_run:
+                candidate, since, base, summed = sk, tk, 0.0, 0.0
+                step = 0.0
+            else:
+                step = tk - last
+            first = False
+            if rates is not None:
+                summed = summed + rates[k] * step
+                held = base + summed
+            else:
+                held = tk - since
+            last = tk
+            if sk != announced:
+                hold = holds[sk]
+                slope = slopes[sk] if slopes is not None else 0.0
+                if rates is None and not slope:
+                    reached = tk >= since + hold
+                else:
+                    if slope and not acts:
+                        acts = np.nan_to_num(np.asarray(activity, dtype=float)).tolist()
+                    reached = held >= (hold + slope * acts[k] if slope else hold)
+                if reached:
+                    announced = sk
+        out[k] = announced
+    if first:  # no eligible sample: nothing changes
+        return out, carry
+    held_s = base + summed if rates is not None else last - since
     return out, PersistenceCarry(
         announced=announced,
         candidate=candidate,
@@ -108,6 +209,51 @@ def announce(
         last_eligible_s=last,
         candidate_held_s=held_s,
     )
+
+
+def _marks(positions: NDArray[np.int64], n: int) -> NDArray[np.bool_]:
+    marks = np.zeros(n, dtype=bool)
+    marks[positions] = True
+    return marks
+
+
+def _first_true_per_run(
+    values: NDArray[np.bool_], starts: NDArray[np.int64], ends: NDArray[np.int64]
+) -> NDArray[np.int64]:
+    """The index of each run's first True (−1: none)."""
+    true_at = np.flatnonzero(values)
+    k = np.searchsorted(true_at, starts)
+    found = np.where(k < true_at.size, true_at[np.minimum(k, true_at.size - 1)], -1) if true_at.size else None
+    if found is None:
+        return np.full(starts.size, -1, dtype=np.int64)
+    return np.where((found >= 0) & (found < ends), found, -1)
+
+
+def _runs_near_hold(
+    weighted: NDArray[np.float64],
+    need: NDArray[np.float64],
+    starts: NDArray[np.int64],
+    ends: NDArray[np.int64],
+    held_carried: float,
+) -> NDArray[np.int64]:
+    """The runs whose hold Σ rate·Δt may reach ``need`` somewhere: a superset, from one cumulative sum.
+
+    The cumulative sum over all runs differs from each run's own by rounding only, bounded by
+    (n + 1)·ε·Σ|terms|; a run within that of its need is kept (and then computed run by run).
+    """
+    if not (np.all(np.isfinite(weighted)) and np.isfinite(held_carried)):
+        return np.arange(starts.size)
+    total = np.cumsum(weighted)
+    before = np.concatenate([[0.0], total])[starts]  # the sum up to each run's start
+    base = np.zeros(starts.size)
+    base[0] = held_carried
+    lengths = ends - starts
+    run_of = np.repeat(np.arange(starts.size), lengths)
+    approx = base[run_of] + (total - before[run_of])
+    scale = float(np.sum(np.abs(weighted))) + abs(held_carried) + float(np.max(np.abs(need)))
+    slack = 4.0 * (weighted.size + 2) * np.finfo(float).eps * scale
+    close = approx >= need - slack
+    return np.flatnonzero(np.logical_or.reduceat(close, starts)) if close.size else np.zeros(0, np.int64)
 
 
 def run_hold(time_s: NDArray[np.float64], rate: NDArray[np.float64] | None = None) -> float:

@@ -1,8 +1,12 @@
 """The diagnosis pipeline for one motor: plausibility → model → steady rule → tree → persistence.
 
-:func:`diagnose_motor` is the single implementation. Replay calls it once per motor with whole arrays;
-the live agent calls it with each new sample and the carry from the previous call (see
-:class:`StreamingDiagnoser`). Both therefore announce exactly the same states.
+:func:`diagnose_motors` is the single implementation: rows of samples, one row per motor, each with the
+carry from its previous call; every rule keeps its state in that carry and looks back only, so a split of
+a motor's samples into calls gives the same states (but see :func:`~..model.dynamics.first_order_response`
+on a call that ends on a lost sample). Replay calls it once per motor with the whole log
+(:func:`diagnose_motor`); the live agent calls it with every motor's few new samples at once (see
+:class:`StreamingDiagnoser`), the same code for one sample or a million. Both therefore announce the same
+states.
 """
 
 from __future__ import annotations
@@ -13,29 +17,37 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from ..model.balance import BalanceCarry, balance_deviations
-from ..model.dynamics import ResponseCarry, first_order_response, time_constant_s
-from ..model.equations import current_from_speed, steady_state
+from ..model.balance import BalanceCarry, balance_deviations_rows
+from ..model.dynamics import ResponseCarry, first_order_responses, time_constant_s
+from ..model.equations import SteadyState, current_from_speed, steady_state
 from ..model.params import MotorParams
 from ..model.predict import predict_steady
 from ..telemetry.table import TelemetryTable
-from .pairing import PairingCarry, pairing_error_rad_s
+from .pairing import PairingCarry, pairing_error_rows
 from .persistence import PersistenceCarry, announce
 from .plausibility import (
     CURRENT_UNTRUSTED,
     CurrentSumCheck,
     PlausibilityCarry,
     SensorIssue,
-    check_motor,
+    check_motor_rows,
 )
 from .profile import ThresholdProfile
-from .stall import StallCarry, stall_mean
+from .stall import StallCarry, stall_mean_rows
 from .states import MotorState
-from .steady import SteadyCarry, steady_mask, warm_mask
+from .steady import SteadyCarry, steady_mask_rows, warm_mask_rows
 from .tree import agreeing_departures, classify_depth
 from .vehicle_check import VehicleCheck, VehicleFit, apply_vehicle_fit
 
-__all__ = ["DIAGNOSIS_COLUMNS", "MotorCarry", "StreamingDiagnoser", "diagnose", "diagnose_motor"]
+__all__ = [
+    "DIAGNOSIS_COLUMNS",
+    "MotorBatch",
+    "MotorCarry",
+    "StreamingDiagnoser",
+    "diagnose",
+    "diagnose_motor",
+    "diagnose_motors",
+]
 
 #: Columns every diagnosis result has, in this order (replay's ``diagnosis.csv``).
 DIAGNOSIS_COLUMNS = (
@@ -74,6 +86,22 @@ class MotorCarry:
     pairing: PairingCarry = field(default_factory=PairingCarry)
 
 
+@dataclass(frozen=True)
+class MotorBatch:
+    """A few new samples of one motor for :meth:`StreamingDiagnoser.update_motors` (1-D columns, the
+    arguments of :func:`diagnose_motor`)."""
+
+    time_s: NDArray[np.float64]
+    voltage_v: NDArray[np.float64]
+    omega_rad_s: NDArray[np.float64]
+    current_a: NDArray[np.float64]
+    bus_voltage_v: NDArray[np.float64] | None = None
+    command: NDArray[np.float64] | None = None
+    sensor_current_a: NDArray[np.float64] | None = None
+    extra_flags: NDArray[np.int16] | None = None
+    context: Mapping[str, NDArray[np.float64]] | None = None
+
+
 def diagnose_motor(
     params: MotorParams,
     profile: ThresholdProfile,
@@ -102,27 +130,82 @@ def diagnose_motor(
     None or 0: the command of the sample's own instant), which the balance rule weighs
     (:mod:`.pairing`).
     """
-    carry = carry or MotorCarry()
+
+    def row(x: NDArray | None, dtype: type = float) -> NDArray | None:
+        return None if x is None else np.asarray(x, dtype=dtype).reshape(1, -1)
+
+    cols, (new,) = diagnose_motors(
+        params,
+        profile,
+        row(time_s),  # type: ignore[arg-type]
+        row(voltage_v),  # type: ignore[arg-type]
+        row(omega_rad_s),  # type: ignore[arg-type]
+        row(current_a),  # type: ignore[arg-type]
+        row(bus_voltage_v),
+        [carry or MotorCarry()],
+        command=row(command),
+        sensor_current_a=row(sensor_current_a),
+        extra_flags=row(extra_flags, np.int16),
+        context=None if context is None else {k: np.asarray(v).reshape(1, -1) for k, v in context.items()},
+        pairing_s=pairing_s,
+    )
+    return {name: values[0] for name, values in cols.items()}, new
+
+
+def diagnose_motors(
+    params: MotorParams,
+    profile: ThresholdProfile,
+    time_s: NDArray[np.float64],
+    voltage_v: NDArray[np.float64],
+    omega_rad_s: NDArray[np.float64],
+    current_a: NDArray[np.float64],
+    bus_voltage_v: NDArray[np.float64] | None = None,
+    given_carries: Sequence[MotorCarry | None] | None = None,
+    lengths: Sequence[int] | None = None,
+    *,
+    command: NDArray[np.float64] | None = None,
+    sensor_current_a: NDArray[np.float64] | None = None,
+    extra_flags: NDArray[np.int16] | None = None,
+    context: Mapping[str, NDArray[np.float64]] | None = None,
+    pairing_s: float | None = None,
+) -> tuple[dict[str, NDArray], list[MotorCarry]]:
+    """:func:`diagnose_motor` for several motors of one model at once: one row of samples per motor.
+
+    The arguments are 2-D (motors × samples), each row one motor's samples in increasing time, with its
+    own carry in ``given_carries`` (None: a new motor). Rows may hold different numbers of samples
+    (``lengths``; None: all of the columns): the rest of a row is padding after its samples, which cannot
+    change their results (every rule looks back only) and whose results mean nothing. Every step runs once for all rows, so a few
+    samples of six motors cost about what a few samples of one did. Returns 2-D result columns and the
+    rows' new carries; each row's results are those :func:`diagnose_motor` gives for that motor alone.
+    """
     t = np.asarray(time_s, dtype=float)
+    rows, n = t.shape
+    carries = [c or MotorCarry() for c in given_carries or [None] * rows]
+    counts = [n] * rows if lengths is None else [int(k) for k in lengths]
+    ragged = None if lengths is None else counts  # rows of different lengths (None: all full)
+    if n == 0:
+        return {name: np.zeros((rows, 0)) for name in _RESULT_COLUMNS}, carries
     v = np.asarray(voltage_v, dtype=float)
+    omega_in = np.asarray(omega_rad_s, dtype=float)
+    current_in = np.asarray(current_a, dtype=float)
     rule = profile.steady
-    balance_carry = carry.balance
-    stall_carry = carry.stall
-    slow_carries = (carry.slow_omega, carry.slow_current)
+    balance_carries = [c.balance for c in carries]
+    stall_carries = [c.stall for c in carries]
+    slow_carries = [c.slow_omega for c in carries] + [c.slow_current for c in carries]
     slow: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]] | None = None  # the slow look
     activity: NDArray[np.float64] | None = None
     judged_v = v
     if rule.kind == "balance":
-        omega_in = np.asarray(omega_rad_s, dtype=float)
-        bal, balance_carry = balance_deviations(
+        bal, balance_carries = balance_deviations_rows(
             params,
             t,
             v,
             omega_in,
-            np.asarray(current_a, dtype=float),
+            current_in,
             rule.residual_tau_s,
             rule.activity_tau_s,
-            carry.balance,
+            balance_carries,
+            counts,
             activity_ref_v=rule.activity_ref_v,
             tau_max_s=rule.residual_tau_max_s,
             input_current_a=sensor_current_a if command is not None else None,
@@ -138,9 +221,9 @@ def diagnose_motor(
         stalled_like = stall_speed < stop_speed
         omega_seen = np.where(stalled_like, stall_speed, omega_pred + bal.delta_omega_rad_s)
         omega_seen = np.where(np.isfinite(omega_in), omega_seen, np.nan)
-        stall_current, stall_carry = stall_mean(np.asarray(current_a, dtype=float), stalled_like, carry.stall)
+        stall_current, stall_carries = stall_mean_rows(current_in, stalled_like, stall_carries, ragged)
         current_seen = np.where(stalled_like, stall_current, current_pred + bal.delta_current_a)
-        current_seen = np.where(np.isfinite(np.asarray(current_a, dtype=float)), current_seen, np.nan)
+        current_seen = np.where(np.isfinite(current_in), current_seen, np.nan)
         # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air
         # is no step at all) puts two operating points into the low-passes: judge after settle_s. A new
         # stream (the first sample, or after a gap) waits until the activity is known too.
@@ -155,13 +238,14 @@ def diagnose_motor(
                 bus_v = np.where(cmd > 0.05, v / cmd, np.nan)  # the input is command × bus voltage
             at_idle = judged_v < profile.min_command * bus_v
         slow_on = rule.slow_factor > 0
-        warm, steady_carry = warm_mask(
+        warm, steady_carries = warm_mask_rows(
             t,
             v,
             rule.settle_s,
             profile.persistence.max_gap_s,
             step_v,
-            carry.steady,
+            [c.steady for c in carries],
+            counts,
             # the activity's low-pass has to fill up first, and the deviations' (longer in gusts)
             start_settle_s=np.maximum(3.0 * rule.activity_tau_s, 3.0 * bal.tau_s),
             restart=at_idle,
@@ -173,21 +257,27 @@ def diagnose_motor(
         if slow_on:
             # The slow look: the deviations averaged slow_factor times longer, judged as long after a step
             slow_tau = rule.slow_factor * bal.tau_s
-            slow_w, slow_carry_w = first_order_response(t, bal.delta_omega_rad_s, slow_tau, carry.slow_omega)
-            slow_i, slow_carry_i = first_order_response(t, bal.delta_current_a, slow_tau, carry.slow_current)
+            slow_both, slow_carries = first_order_responses(
+                t,
+                np.concatenate([bal.delta_omega_rad_s, bal.delta_current_a]),
+                slow_tau,
+                slow_carries,
+                counts * 2,
+            )
             # only where the low-pass is not already lengthened by the activity (calm air): in gusts the
             # fast look averages long already, and a slower one would hold every gust's upset for seconds
             calm = bal.tau_s <= rule.residual_tau_s
-            slow = (slow_w, slow_i, slow_warm & steady & ~stalled_like & calm)
-            slow_carries = (slow_carry_w, slow_carry_i)
-        response_carry = carry.response
-        speed_carry, current_carry = carry.speed_residual, carry.current_residual
+            slow = (slow_both[:rows], slow_both[rows:], slow_warm & steady & ~stalled_like & calm)
+        response_carries = [c.response for c in carries]
+        residual_carries = [c.speed_residual for c in carries] + [c.current_residual for c in carries]
         omega_expected = omega_pred
     else:
-        model = predict_steady(params, v, context) if params.effects else steady_state(params, v)
+        model = _steady_model(params, v, context, counts)
         if rule.kind == "dynamic" and params.J_kg_m2 is not None:
             tau = time_constant_s(params, model.omega_rad_s)
-            omega_pred, response_carry = first_order_response(t, model.omega_rad_s, tau, carry.response)
+            omega_pred, response_carries = first_order_responses(
+                t, model.omega_rad_s, tau, [c.response for c in carries], counts
+            )
             turning = omega_pred > 0
             # Current from the torque balance (eq. 7 plus the inertia's share, J·dω/dt with dω/dt of the
             # first-order response), not from eq. 2: eq. 2 would turn every sampled command jitter into
@@ -202,7 +292,7 @@ def diagnose_motor(
             # The input is known only at the samples: a sample is quasi-steady where the response has
             # caught up with the steady state and the input has not stepped since the last samples (a
             # command that jumps between samples hides what the motor saw in between).
-            held, steady_carry = steady_mask(rule, t, v, carry.steady)
+            held, steady_carries = steady_mask_rows(rule, t, v, [c.steady for c in carries], counts)
             steady = (
                 held
                 & (np.abs(omega_pred - model.omega_rad_s) <= lag * profile.speed_band_rad_s)
@@ -210,27 +300,33 @@ def diagnose_motor(
             )
         else:
             omega_pred, current_pred = model.omega_rad_s, model.current_a
-            steady, steady_carry = steady_mask(rule, t, v, carry.steady)
-            response_carry = carry.response
-        omega_seen, current_seen, speed_carry, current_carry = _lowpass_residuals(
-            rule.residual_tau_s, t, omega_rad_s, current_a, omega_pred, current_pred, carry
+            steady, steady_carries = steady_mask_rows(rule, t, v, [c.steady for c in carries], counts)
+            response_carries = [c.response for c in carries]
+        omega_seen, current_seen, residual_carries = _lowpass_residuals(
+            rule.residual_tau_s, t, omega_in, current_in, omega_pred, current_pred, carries, counts
         )
         omega_expected = np.minimum(omega_pred, model.omega_rad_s)
-    reported = current_a if sensor_current_a is None else sensor_current_a
-    flags, plausibility_carry = check_motor(
-        profile.plausibility, t, command, reported, omega_rad_s, carry.plausibility
+    reported = current_in if sensor_current_a is None else np.asarray(sensor_current_a, dtype=float)
+    flags, plausibility_carries = check_motor_rows(
+        profile.plausibility,
+        t,
+        None if command is None else np.asarray(command, dtype=float),
+        reported,
+        omega_in,
+        [c.plausibility for c in carries],
+        ragged,
     )
     if extra_flags is not None:
         flags = flags | extra_flags
-    speed_band = profile.speed_band(activity)
+    speed_band, current_band, current_band_below = profile.bands(judged_v, activity)
     pairing_error = np.full(t.shape, np.nan)
-    pairing_carry = carry.pairing
+    pairing_carries = [c.pairing for c in carries]
     if rule.kind == "balance" and pairing_s:
         # a command paired loosely with its sample: the current is not used where the voltage error it
         # could cause is a sizeable part of the speed band, nothing is judged where it is a sizeable part
         # of the speed-only band (diagnosis/pairing.py)
-        pairing_error, pairing_carry = pairing_error_rad_s(
-            params, t, v, omega_pred, pairing_s, bal.tau_s, carry.pairing
+        pairing_error, pairing_carries = pairing_error_rows(
+            params, t, v, omega_pred, pairing_s, bal.tau_s, pairing_carries, ragged
         )
         plaus = profile.plausibility
         flags = np.where(
@@ -240,9 +336,7 @@ def diagnose_motor(
         ).astype(np.int16)
         speed_only_band = profile.speed_only_band(speed_band, omega_pred)
         steady = steady & ~(pairing_error > plaus.pairing_speed_share * speed_only_band)
-    current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_a)
-    current_band = profile.current_halfwidth_a(judged_v, activity)
-    current_band_below = profile.current_halfwidth_a(judged_v, activity, below=True)
+    current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_in)
     state, depth = classify_depth(
         profile,
         omega_rad_s=omega_seen,
@@ -284,18 +378,25 @@ def diagnose_motor(
         eligible &= ~idle
         steady = steady & ~idle
     depth[state == MotorState.SENSOR_FAULT] = 1.0
-    max_depth = profile.persistence.max_depth
-    announced, persistence_carry = announce(
-        profile.persistence.hold_s(),
-        t,
-        state,
-        eligible,
-        carry.persistence,
-        profile.persistence.max_gap_s,
-        hold_per_activity_s=profile.persistence.hold_per_activity_s(),
-        activity=activity,
-        rate=np.minimum(depth, max_depth) if max_depth > 1 else None,
-    )
+    persistence = profile.persistence
+    max_depth = persistence.max_depth
+    rate = np.minimum(depth, max_depth) if max_depth > 1 else None
+    hold_s, hold_per_activity_s = persistence.hold_s(), persistence.hold_per_activity_s()
+    announced = np.zeros(t.shape, dtype=np.int8)
+    persistence_carries = []
+    for r, (carry, count) in enumerate(zip(carries, counts)):
+        announced[r, :count], persistence_carry = announce(
+            hold_s,
+            t[r, :count],
+            state[r, :count],
+            eligible[r, :count],
+            carry.persistence,
+            persistence.max_gap_s,
+            hold_per_activity_s=hold_per_activity_s,
+            activity=None if activity is None else activity[r, :count],
+            rate=None if rate is None else rate[r, :count],
+        )
+        persistence_carries.append(persistence_carry)
     columns: dict[str, NDArray] = {
         "state": state,
         "announced": announced,
@@ -315,20 +416,63 @@ def diagnose_motor(
         "slow_ready": np.zeros(t.shape, dtype=bool) if slow is None else slow[2],
         "pairing_error_rad_s": pairing_error,
     }
-    new_carry = MotorCarry(
-        steady=steady_carry,
-        response=response_carry,
-        speed_residual=speed_carry,
-        current_residual=current_carry,
-        plausibility=plausibility_carry,
-        persistence=persistence_carry,
-        balance=balance_carry,
-        stall=stall_carry,
-        slow_omega=slow_carries[0],
-        slow_current=slow_carries[1],
-        pairing=pairing_carry,
-    )
-    return columns, new_carry
+    new_carries = [
+        MotorCarry(
+            steady=steady_carries[r],
+            response=response_carries[r],
+            speed_residual=residual_carries[r],
+            current_residual=residual_carries[rows + r],
+            plausibility=plausibility_carries[r],
+            persistence=persistence_carries[r],
+            balance=balance_carries[r],
+            stall=stall_carries[r],
+            slow_omega=slow_carries[r],
+            slow_current=slow_carries[rows + r],
+            pairing=pairing_carries[r],
+        )
+        for r in range(rows)
+    ]
+    return columns, new_carries
+
+
+#: the result columns of :func:`diagnose_motors`
+_RESULT_COLUMNS = (
+    "state",
+    "announced",
+    "steady",
+    "omega_model_rad_s",
+    "current_model_a",
+    "sensor_flags",
+    "omega_judged_rad_s",
+    "current_judged_a",
+    "speed_band_rad_s",
+    "current_band_a",
+    "current_band_below_a",
+    "input_activity_v",
+    "depth",
+    "omega_slow_judged_rad_s",
+    "current_slow_judged_a",
+    "slow_ready",
+    "pairing_error_rad_s",
+)
+
+
+def _steady_model(
+    params: MotorParams,
+    v: NDArray[np.float64],
+    context: Mapping[str, NDArray[np.float64]] | None,
+    counts: list[int],
+) -> SteadyState:
+    """The steady state at each sample: the base model for all rows at once, a model with fitted effects
+    row by row (its context is per motor)."""
+    if not params.effects:
+        return steady_state(params, v)
+    omega, current = np.full(v.shape, np.nan), np.full(v.shape, np.nan)
+    for r, count in enumerate(counts):
+        row_context = None if context is None else {k: np.asarray(x)[r, :count] for k, x in context.items()}
+        model = predict_steady(params, v[r, :count], row_context)
+        omega[r, :count], current[r, :count] = model.omega_rad_s, model.current_a
+    return SteadyState(omega, current)
 
 
 def _lowpass_residuals(
@@ -338,24 +482,28 @@ def _lowpass_residuals(
     current_a: NDArray[np.float64],
     omega_pred: NDArray[np.float64],
     current_pred: NDArray[np.float64],
-    carry: MotorCarry,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], ResponseCarry, ResponseCarry]:
+    carries: list[MotorCarry],
+    counts: list[int],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], list[ResponseCarry]]:
     """The measurements as the tree judges them for the step and dynamic rules: the prediction plus the
-    low-passed residual (no low-pass with ``tau_s`` = 0)."""
-    speed_carry, current_carry = carry.speed_residual, carry.current_residual
-    omega_seen = np.asarray(omega_rad_s, dtype=float)
-    current_seen = np.asarray(current_a, dtype=float)
+    low-passed residual (no low-pass with ``tau_s`` = 0); the carries: speed residuals, then currents."""
+    residual_carries = [c.speed_residual for c in carries] + [c.current_residual for c in carries]
+    omega_seen, current_seen = omega_rad_s, current_a
     if tau_s > 0:
         # Commands are sampled, the motor sees every control cycle in between: the residual carries the
         # aliased control noise. Low-passing the residual (not the measurement) keeps a fault's lasting
         # offset and averages that noise, as the paper's moving average did for the current.
-        speed_res, speed_carry = first_order_response(t, omega_seen - omega_pred, tau_s, speed_carry)
-        current_res, current_carry = first_order_response(
-            t, current_seen - current_pred, tau_s, current_carry
+        rows = t.shape[0]
+        residuals, residual_carries = first_order_responses(
+            t,
+            np.concatenate([omega_seen - omega_pred, current_seen - current_pred]),
+            tau_s,
+            residual_carries,
+            counts * 2,
         )
-        omega_seen = np.where(np.isfinite(omega_seen), omega_pred + speed_res, np.nan)
-        current_seen = np.where(np.isfinite(current_seen), current_pred + current_res, np.nan)
-    return omega_seen, current_seen, speed_carry, current_carry
+        omega_seen = np.where(np.isfinite(omega_seen), omega_pred + residuals[:rows], np.nan)
+        current_seen = np.where(np.isfinite(current_seen), current_pred + residuals[rows:], np.nan)
+    return omega_seen, current_seen, residual_carries
 
 
 def _current_sum_flags(table: TelemetryTable, profile: ThresholdProfile) -> NDArray[np.int16] | None:
@@ -634,6 +782,86 @@ class StreamingDiagnoser:
             pairing_s=pairing_s,
         )
         return cols
+
+    def update_motors(
+        self, batches: Mapping[int, MotorBatch], pairing_s: float | None = None
+    ) -> dict[int, dict[str, NDArray]]:
+        """Diagnose a few new samples of several motors in one core call (:func:`diagnose_motors`): the
+        same results as :meth:`update_many` motor by motor, for about the cost of one motor. Motors with
+        different models, a model with fitted effects, or batches with different columns are diagnosed
+        motor by motor."""
+        groups: dict[tuple[int, tuple[bool, ...]], list[int]] = {}
+        alone: list[list[int]] = []
+        for motor, batch in batches.items():
+            motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
+            if motor_params.effects:  # its context is per motor
+                alone.append([motor])
+                continue
+            given = tuple(
+                getattr(batch, name) is not None
+                for name in ("bus_voltage_v", "command", "sensor_current_a", "extra_flags")
+            )
+            groups.setdefault((id(motor_params), given), []).append(motor)
+        results: dict[int, dict[str, NDArray]] = {}
+        for motors in [*groups.values(), *alone]:
+            if len(motors) == 1:
+                b = batches[motors[0]]
+                results[motors[0]] = self.update_many(
+                    motors[0],
+                    b.time_s,
+                    b.voltage_v,
+                    b.omega_rad_s,
+                    b.current_a,
+                    b.bus_voltage_v,
+                    command=b.command,
+                    sensor_current_a=b.sensor_current_a,
+                    extra_flags=b.extra_flags,
+                    context=b.context,
+                    pairing_s=pairing_s,
+                )
+                continue
+            results.update(self._update_rows(motors, [batches[m] for m in motors], pairing_s))
+        return {motor: results[motor] for motor in batches}
+
+    def _update_rows(
+        self, motors: list[int], batches: list[MotorBatch], pairing_s: float | None
+    ) -> dict[int, dict[str, NDArray]]:
+        counts = [np.asarray(b.time_s).size for b in batches]
+        width = max(counts)
+
+        def rows(name: str, dtype: type = float, pad: float = np.nan) -> NDArray | None:
+            if getattr(batches[0], name) is None:
+                return None
+            out: NDArray = np.full((len(batches), width), pad, dtype=dtype)
+            for r, (batch, count) in enumerate(zip(batches, counts)):
+                out[r, :count] = getattr(batch, name)
+            return out
+
+        time_s = rows("time_s")
+        assert time_s is not None
+        for r, count in enumerate(counts):  # padding: the row's last time (no interval), no values
+            time_s[r, count:] = time_s[r, count - 1] if count else 0.0
+        motor_params = self.params[motors[0]] if isinstance(self.params, dict) else self.params
+        cols, carries = diagnose_motors(
+            motor_params,
+            self.profile,
+            time_s,
+            rows("voltage_v"),  # type: ignore[arg-type]
+            rows("omega_rad_s"),  # type: ignore[arg-type]
+            rows("current_a"),  # type: ignore[arg-type]
+            rows("bus_voltage_v"),
+            [self.carries.get(m) for m in motors],
+            counts,
+            command=rows("command"),
+            sensor_current_a=rows("sensor_current_a"),
+            extra_flags=rows("extra_flags", np.int16, 0),
+            pairing_s=pairing_s,
+        )
+        results = {}
+        for r, (motor, count, carry) in enumerate(zip(motors, counts, carries)):
+            self.carries[motor] = carry
+            results[motor] = {name: values[r, :count] for name, values in cols.items()}
+        return results
 
     def announced(self, motor: int) -> MotorState:
         carry = self.carries.get(motor)

@@ -21,13 +21,14 @@ Per motor, causal, carried between calls (live and replay run the same code):
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConfigError
-from ..model.dynamics import ResponseCarry, first_order_response
+from ..model.dynamics import ResponseCarry, first_order_responses, last_of, previous
 
 __all__ = [
     "CurrentSumCheck",
@@ -36,7 +37,9 @@ __all__ = [
     "SensorIssue",
     "StuckCarry",
     "check_motor",
+    "check_motor_rows",
     "stuck_mask",
+    "stuck_mask_rows",
     "sum_mismatch",
 ]
 
@@ -124,37 +127,69 @@ def stuck_mask(
 ) -> tuple[NDArray[np.bool_], StuckCarry]:
     """True where ``value`` has been frozen for ``stuck_s`` while ``command`` (0..1) moved."""
     t = np.asarray(time_s, dtype=float)
-    v = np.asarray(value, dtype=float)
-    n = t.size
-    if n == 0:
+    if t.size == 0:
         return np.zeros(0, bool), carry
-    c = np.asarray(command, dtype=float)
-    # forward-fill missing commands (hold the last one), starting from the carry's range midpoint
-    fill = 0.5 * (carry.command_max + carry.command_min) if np.isfinite(carry.command_max) else 0.0
-    idx = np.maximum.accumulate(np.where(np.isfinite(c), np.arange(n), -1))
-    c = np.where(idx >= 0, c[np.maximum(idx, 0)], fill)
-    c = np.clip(c, 0.0, 1.0)
-    previous = np.concatenate([[carry.value], v[:-1]])
-    change = ~(v == previous)  # NaN never equals: a missing value starts a new segment
-    seg = np.cumsum(change)  # segment 0 continues the carried one
-    since = np.where(change, t, np.nan)
-    since[0] = t[0] if change[0] or not np.isfinite(carry.since_s) else carry.since_s
-    idx = np.maximum.accumulate(np.where(np.isfinite(since), np.arange(n), 0))
-    since = since[idx]
-    lift = 2.0 * seg
-    run_max = np.maximum.accumulate(c + lift) - lift
-    run_min = -(np.maximum.accumulate(-c + lift) - lift)
-    if not change[0] and np.isfinite(carry.command_max):
-        first = seg == 0
-        run_max[first] = np.maximum(run_max[first], carry.command_max)
-        run_min[first] = np.minimum(run_min[first], carry.command_min)
-    stuck = (t - since >= rule.stuck_s) & (run_max - run_min >= rule.min_command_change) & np.isfinite(v)
-    return stuck, StuckCarry(
-        value=float(v[-1]),
-        since_s=float(since[-1]),
-        command_max=float(run_max[-1]),
-        command_min=float(run_min[-1]),
+    stuck, (new,) = stuck_mask_rows(
+        rule,
+        t.reshape(1, -1),
+        np.asarray(value, dtype=float).reshape(1, -1),
+        np.asarray(command, dtype=float).reshape(1, -1),
+        [carry],
     )
+    return stuck[0], new
+
+
+def stuck_mask_rows(
+    rule: PlausibilityRule,
+    time_s: NDArray[np.float64],
+    value: NDArray[np.float64],
+    command: NDArray[np.float64],
+    carries: list[StuckCarry],
+    lengths: list[int] | None = None,
+) -> tuple[NDArray[np.bool_], list[StuckCarry]]:
+    """:func:`stuck_mask` of several motors at once: rows of samples (2-D), one carry per row;
+    ``lengths`` each row's number of samples (None: all; the rest is padding after them)."""
+    t, v = time_s, value
+    rows, n = t.shape
+    counts = [n] * rows if lengths is None else lengths
+    positions = np.arange(n)
+    # forward-fill missing commands (hold the last one), starting from the carry's range midpoint
+    fill = np.array(
+        [[0.5 * (c.command_max + c.command_min) if np.isfinite(c.command_max) else 0.0] for c in carries]
+    )
+    idx = np.maximum.accumulate(np.where(np.isfinite(command), positions, -1), axis=1)
+    c = np.where(idx >= 0, np.take_along_axis(command, np.maximum(idx, 0), axis=1), fill)
+    c = np.clip(c, 0.0, 1.0)
+    change = ~(v == previous(v, [k.value for k in carries]))  # NaN never equals: a new segment
+    seg = np.cumsum(change, axis=1)  # segment 0 continues the carried one
+    since = np.where(change, t, np.nan)
+    carried_since = np.array([k.since_s for k in carries])
+    since[:, 0] = np.where(change[:, 0] | ~np.isfinite(carried_since), t[:, 0], carried_since)
+    idx = np.maximum.accumulate(np.where(np.isfinite(since), positions, 0), axis=1)
+    since = np.take_along_axis(since, idx, axis=1)
+    lift = 2.0 * seg
+    run_max = np.maximum.accumulate(c + lift, axis=1) - lift
+    run_min = -(np.maximum.accumulate(-c + lift, axis=1) - lift)
+    carried_max = np.array([[k.command_max] for k in carries])
+    carried_min = np.array([[k.command_min] for k in carries])
+    first = (seg == 0) & (~change[:, :1] & np.isfinite(carried_max))
+    if first.any():
+        run_max = np.where(first, np.maximum(run_max, carried_max), run_max)
+        run_min = np.where(first, np.minimum(run_min, carried_min), run_min)
+    stuck = (t - since >= rule.stuck_s) & (run_max - run_min >= rule.min_command_change) & np.isfinite(v)
+    news = [
+        carry
+        if last_v is None
+        else StuckCarry(value=last_v, since_s=since_s, command_max=high, command_min=low)
+        for carry, last_v, since_s, high, low in zip(
+            carries,
+            last_of(v, counts),
+            last_of(since, counts),
+            last_of(run_max, counts),
+            last_of(run_min, counts),
+        )
+    ]
+    return stuck, news
 
 
 @dataclass(frozen=True)
@@ -173,19 +208,55 @@ def check_motor(
 ) -> tuple[NDArray[np.int16], PlausibilityCarry]:
     """:class:`SensorIssue` flags per sample for one motor (``sensor_current_a``: the current as reported)."""
     t = np.asarray(time_s, dtype=float)
-    i = np.asarray(sensor_current_a, dtype=float)
-    w = np.asarray(omega_rad_s, dtype=float)
-    cmd = np.full(t.shape, np.nan) if command is None else np.asarray(command, dtype=float)
+    if t.size == 0:
+        return np.zeros(0, dtype=np.int16), carry
+
+    def row(x: ArrayLike) -> NDArray[np.float64]:
+        return np.asarray(x, dtype=float).reshape(1, -1)
+
+    flags, (new,) = check_motor_rows(
+        rule,
+        row(t),
+        None if command is None else row(command),
+        row(sensor_current_a),
+        row(omega_rad_s),
+        [carry],
+    )
+    return flags[0], new
+
+
+def check_motor_rows(
+    rule: PlausibilityRule,
+    time_s: NDArray[np.float64],
+    command: NDArray[np.float64] | None,
+    sensor_current_a: NDArray[np.float64],
+    omega_rad_s: NDArray[np.float64],
+    carries: list[PlausibilityCarry],
+    lengths: list[int] | None = None,
+) -> tuple[NDArray[np.int16], list[PlausibilityCarry]]:
+    """:func:`check_motor` of several motors at once: rows of samples (2-D), one carry per row;
+    ``lengths`` each row's number of samples (None: all; the rest is padding after them)."""
+    t, i, w = time_s, sensor_current_a, omega_rad_s
+    cmd = np.full(t.shape, np.nan) if command is None else command
     flags = np.zeros(t.shape, dtype=np.int16)
     flags[~np.isfinite(i)] |= SensorIssue.CURRENT_MISSING
     flags[~np.isfinite(w)] |= SensorIssue.SPEED_MISSING
     flags[(i < rule.current_min_a) | (i > rule.current_max_a)] |= SensorIssue.CURRENT_RANGE
     flags[(w < 0) | (w > rule.speed_max_rad_s)] |= SensorIssue.SPEED_RANGE
-    i_stuck, current_carry = stuck_mask(rule, t, i, cmd, carry.current)
-    w_stuck, speed_carry = stuck_mask(rule, t, w, cmd, carry.speed)
-    flags[i_stuck] |= SensorIssue.CURRENT_STUCK
-    flags[w_stuck & (w > 0)] |= SensorIssue.SPEED_STUCK  # a motor at rest reads 0 whatever its command
-    return flags, PlausibilityCarry(current=current_carry, speed=speed_carry)
+    # the current's and the speed's stuck checks in one call: the same samples and commands
+    rows = t.shape[0]
+    stuck, stuck_carries = stuck_mask_rows(
+        rule,
+        np.concatenate([t, t]),
+        np.concatenate([i, w]),
+        np.concatenate([cmd, cmd]),
+        [c.current for c in carries] + [c.speed for c in carries],
+        None if lengths is None else lengths * 2,
+    )
+    flags[stuck[:rows]] |= SensorIssue.CURRENT_STUCK
+    flags[stuck[rows:] & (w > 0)] |= SensorIssue.SPEED_STUCK  # a motor at rest reads 0 whatever its command
+    news = [PlausibilityCarry(current=stuck_carries[r], speed=stuck_carries[rows + r]) for r in range(rows)]
+    return flags, news
 
 
 @dataclass(frozen=True)
@@ -197,6 +268,8 @@ class SumCarry:
 
 #: the sum is judged once its averages hold this share of ``sum_tau_s``
 SUM_MIN_SHARE = 0.2
+#: up to this many rows (the live agent's batches) the sums are formed row by row
+_SUM_LOOP_MAX = 64
 
 
 def sum_mismatch(
@@ -221,8 +294,9 @@ def sum_mismatch(
         start = float(t[both[0]]) if both.size else float("nan")
     elapsed = t - start  # NaN before a start: the low-passes then hold (NaN inputs)
     tau = np.clip(np.where(np.isfinite(elapsed), elapsed, rule.sum_tau_s), 1e-3, rule.sum_tau_s)
-    esc, esc_carry = first_order_response(t, esc_in, tau, carry.esc)
-    bat, bat_carry = first_order_response(t, bat_in, tau, carry.battery)
+    (esc, bat), (esc_carry, bat_carry) = first_order_responses(
+        t, np.stack([esc_in, bat_in]), tau, [carry.esc, carry.battery]
+    )
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = esc / bat
     mismatch = (
@@ -259,6 +333,33 @@ class CurrentSumCheck:
         t = np.asarray(time_s, dtype=float)
         m = np.asarray(motor, dtype=np.int64)
         i = np.asarray(esc_current_a, dtype=float)
+        total = self._sums(m, i) if t.size <= _SUM_LOOP_MAX else self._sums_vectorised(t, m, i)
+        # the two averages start together: each only where both are known
+        battery = np.asarray(battery_current_a, dtype=float)
+        known = np.isfinite(total) & np.isfinite(battery)
+        total, battery = np.where(known, total, np.nan), np.where(known, battery, np.nan)
+        mismatch, _, self.carry = sum_mismatch(self.rule, t, total, battery, self.carry)
+        return mismatch
+
+    def _sums(self, m: NDArray[np.int64], i: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The sum of every motor's latest reading at each row, row by row (a few rows)."""
+        slot = {number: k for k, number in enumerate(self.motors)}
+        latest = self.latest.tolist()
+        total = np.empty(m.size)
+        for r, (number, reading) in enumerate(zip(m.tolist(), i.tolist())):
+            k = slot.get(number)
+            if k is not None and math.isfinite(reading):
+                latest[k] = reading
+            value = 0.0
+            for held in latest:  # in the motors' order, as the vectorised sum adds them
+                value += held
+            total[r] = value
+        self.latest = np.array(latest)
+        return total
+
+    def _sums_vectorised(
+        self, t: NDArray[np.float64], m: NDArray[np.int64], i: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
         total = np.zeros(t.shape)
         positions = np.arange(t.size)
         for k, number in enumerate(self.motors):
@@ -269,9 +370,4 @@ class CurrentSumCheck:
             total += held  # NaN until this motor has reported: no sum yet
             if t.size and last[-1] >= 0:
                 self.latest[k] = i[last[-1]]
-        # the two averages start together: each only where both are known
-        battery = np.asarray(battery_current_a, dtype=float)
-        known = np.isfinite(total) & np.isfinite(battery)
-        total, battery = np.where(known, total, np.nan), np.where(known, battery, np.nan)
-        mismatch, _, self.carry = sum_mismatch(self.rule, t, total, battery, self.carry)
-        return mismatch
+        return total

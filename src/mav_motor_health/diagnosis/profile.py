@@ -268,6 +268,26 @@ class ThresholdProfile:
             band = band + self._widening(activity_v, 3 if below and len(self.activity_band[0]) == 4 else 2)
         return band
 
+    def bands(
+        self, voltage_v: ArrayLike, activity_v: ArrayLike | None = None
+    ) -> tuple[NDArray[np.float64] | float, NDArray[np.float64], NDArray[np.float64]]:
+        """:meth:`speed_band`, :meth:`current_halfwidth_a` and its side below the model, in one call (the
+        activity read once)."""
+        if activity_v is None or not self.activity_band:
+            current = self.current_halfwidth_a(voltage_v)
+            return self.speed_band_rad_s, current, current.copy()
+        activity = np.nan_to_num(np.asarray(activity_v, dtype=float))
+        xs = [row[0] for row in self.activity_band]
+        base = self.current_halfwidth_a(voltage_v)
+        above = base + np.interp(activity, xs, [row[2] for row in self.activity_band])
+        below = (
+            base + np.interp(activity, xs, [row[3] for row in self.activity_band])
+            if len(self.activity_band[0]) == 4
+            else above.copy()
+        )
+        speed = self.speed_band_rad_s + np.interp(activity, xs, [row[1] for row in self.activity_band])
+        return speed, above, below
+
     def speed_band(self, activity_v: ArrayLike | None = None) -> NDArray[np.float64] | float:
         """Half-width of the speed band [rad/s], widened by the input activity when given."""
         if activity_v is None or not self.activity_band:

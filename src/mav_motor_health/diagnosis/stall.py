@@ -18,7 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["StallCarry", "stall_mean"]
+from ..model.dynamics import last_of
+
+__all__ = ["StallCarry", "stall_mean", "stall_mean_rows"]
 
 
 @dataclass(frozen=True)
@@ -38,26 +40,58 @@ def stall_mean(
     continues one that is running at the end of the previous call."""
     i = np.asarray(current_a, dtype=float)
     run = np.asarray(stalled, dtype=bool)
-    n = i.size
-    if n == 0:
+    if i.size == 0:
         return np.zeros(0), carry
-    if not carry.stalled and not run.any():  # the usual case: no stall at all
-        return np.full(n, np.nan), StallCarry()
-    previous = np.concatenate([[carry.stalled], run[:-1]])
-    begins = run & ~previous
-    run_id = np.cumsum(begins)  # 0: the run carried in (if any), k: the k-th run begun in this call
+    mean, (new,) = stall_mean_rows(i.reshape(1, -1), run.reshape(1, -1), [carry])
+    return mean[0], new
+
+
+def stall_mean_rows(
+    current_a: NDArray[np.float64],
+    stalled: NDArray[np.bool_],
+    carries: list[StallCarry],
+    lengths: list[int] | None = None,
+) -> tuple[NDArray[np.float64], list[StallCarry]]:
+    """:func:`stall_mean` of several motors at once: rows of samples (2-D), one carry per row;
+    ``lengths`` each row's number of samples (None: all; the rest is padding after them)."""
+    i, run = current_a, stalled
+    rows, n = i.shape
+    counts = [n] * rows if lengths is None else lengths
+    if lengths is not None:
+        run = run & (np.arange(n) < np.asarray(lengths)[:, None])  # padding is no stall
+    carried = np.array([c.stalled for c in carries])
+    if not carried.any() and not run.any():  # the usual case: no stall at all
+        return np.full((rows, n), np.nan), [StallCarry() if k else c for c, k in zip(carries, counts)]
+    begins = run & ~np.concatenate([carried[:, None], run[:, :-1]], axis=1)
     finite = np.isfinite(i) & run
     values = np.where(finite, i, 0.0)
-    csum = np.cumsum(values)
-    ccount = np.cumsum(finite)
-    # Sums and counts up to the sample before each run's first sample, to subtract
-    first = np.flatnonzero(begins)
-    base_sum = np.concatenate([[-carry.total_a], csum[first] - values[first]])
-    base_count = np.concatenate([[-carry.count], ccount[first] - finite[first]])
-    total = csum - base_sum[run_id]
-    count = ccount - base_count[run_id]
+    csum = np.cumsum(values, axis=1)
+    ccount = np.cumsum(finite, axis=1)
+    # Sums and counts up to the sample before each run's first sample, to subtract: at each sample, those
+    # of the latest run begun at or before it (none in this call: the carried run's, negated)
+    latest = np.maximum.accumulate(np.where(begins, np.arange(n), -1), axis=1)
+    have = latest >= 0
+    at = np.maximum(latest, 0)
+    base_sum = np.where(
+        have,
+        np.take_along_axis(csum - values, at, axis=1),
+        -np.array([[c.total_a] for c in carries]),
+    )
+    base_count = np.where(
+        have,
+        np.take_along_axis(ccount - finite, at, axis=1),
+        -np.array([[c.count] for c in carries]),
+    )
+    total = csum - base_sum
+    count: NDArray[np.int64] = ccount - base_count
     with np.errstate(divide="ignore", invalid="ignore"):
         mean = np.where(run & (count > 0), total / np.maximum(count, 1), np.nan)
-    last = bool(run[-1])
-    new = StallCarry(float(total[-1]), int(count[-1]), True) if last else StallCarry()
-    return mean, new
+    news = []
+    for carry, last_run, last_total, last_count in zip(
+        carries, last_of(run, counts), last_of(total, counts), last_of(count, counts)
+    ):
+        if last_run is None:
+            news.append(carry)
+        else:
+            news.append(StallCarry(float(last_total), int(last_count), True) if last_run else StallCarry())
+    return mean, news

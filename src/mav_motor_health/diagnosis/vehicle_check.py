@@ -50,7 +50,7 @@ __all__ = [
 ]
 
 #: Up to this many rows (the live agent's batches) the check runs as a plain loop.
-_SCALAR_MAX = 16
+_SCALAR_MAX = 256
 
 
 class VehicleFit:
@@ -150,48 +150,68 @@ class VehicleCheck:
         return self._update_arrays(t, m, w, wm, turning)
 
     def _update_rows(self, t, m, w, wm, turning) -> NDArray[np.int8]:
-        out = np.zeros(t.size, dtype=np.int8)
-        for r in range(t.size):
-            if turning[r]:
-                ev = self.evidence.setdefault(int(m[r]), MotorEvidence())
+        # Row by row, the verdict's three counts kept up to date as one motor's evidence changes
+        status = {motor: self._status(ev) for motor, ev in self.evidence.items()}
+        evidenced, faster, slower = (sum(column) for column in zip((0, 0, 0), *status.values()))
+        verdict = self._verdict(evidenced, faster, slower)
+        out = np.empty(t.size, dtype=np.int8)
+        rows = zip(turning.tolist(), m.tolist(), t.tolist(), w.tolist(), wm.tolist())
+        for r, (turns, motor, time_s, speed, model) in enumerate(rows):
+            if turns:
+                ev = self.evidence.setdefault(motor, MotorEvidence())
                 ev.samples += 1
-                ev.speed_sum += float(w[r])
-                ev.speed_model_sum += float(wm[r])
-                ev.first_s = min(ev.first_s, float(t[r]))
-                ev.last_s = max(ev.last_s, float(t[r]))
-            deps = [
-                ev.departure()
-                for ev in self.evidence.values()
-                if ev.samples >= self.rule.min_samples and ev.last_s - ev.first_s >= self.rule.min_span_s
-            ]
-            out[r] = self._verdict(
-                len(deps),
-                sum(d > self.rule.speed_departure for d in deps),
-                sum(d < -self.rule.speed_departure for d in deps),
-            )
+                ev.speed_sum += speed
+                ev.speed_model_sum += model
+                ev.first_s = min(ev.first_s, time_s)
+                ev.last_s = max(ev.last_s, time_s)
+                new = self._status(ev)
+                old = status.get(motor, (0, 0, 0))
+                if new != old:
+                    status[motor] = new
+                    evidenced += new[0] - old[0]
+                    faster += new[1] - old[1]
+                    slower += new[2] - old[2]
+                    verdict = self._verdict(evidenced, faster, slower)
+            out[r] = verdict
         return out
+
+    def _status(self, ev: MotorEvidence) -> tuple[int, int, int]:
+        """(has evidence, departs faster, departs slower) of one motor, as 0 or 1."""
+        if ev.samples < self.rule.min_samples or ev.last_s - ev.first_s < self.rule.min_span_s:
+            return (0, 0, 0)
+        departure = ev.departure()
+        return (1, int(departure > self.rule.speed_departure), int(departure < -self.rule.speed_departure))
 
     def _update_arrays(self, t, m, w, wm, turning) -> NDArray[np.int8]:
         n = t.size
         motors = sorted(set(self.evidence) | {int(x) for x in np.unique(m[turning])})
-        deps = np.full((n, len(motors)), np.nan)
-        for k, motor in enumerate(motors):
+        # How many motors have evidence, depart faster, depart slower, at each row: each motor's share
+        # changes only at its own turning rows, so the counts are sums of those changes
+        changes = np.zeros((3, n), dtype=np.int64)
+        before = np.zeros(3, dtype=np.int64)
+        for motor in motors:
             ev = self.evidence.setdefault(motor, MotorEvidence())
-            mine = turning & (m == motor)
-            seen = np.flatnonzero(mine)
-
-            def running(start: float, values: NDArray, mine: NDArray = mine) -> NDArray[np.float64]:
-                # the carry first, then each row's contribution: the additions a row-by-row run makes
-                return np.cumsum(np.concatenate([[start], np.where(mine, values, 0.0)]))[1:]
-
-            count = ev.samples + np.cumsum(mine)
-            speed_sum, model_sum = running(ev.speed_sum, w), running(ev.speed_model_sum, wm)
+            seen = np.flatnonzero(turning & (m == motor))
+            # The evidence after each of the motor's turning rows (index 0: the carry, before any): the
+            # additions a row-by-row run makes, in its order
+            count = ev.samples + np.arange(seen.size + 1)
+            speed_sum = np.cumsum(np.concatenate([[ev.speed_sum], w[seen]]))
+            model_sum = np.cumsum(np.concatenate([[ev.speed_model_sum], wm[seen]]))
             # the first turning sample's time matters only once there is one (evidence needs samples)
             first = ev.first_s if seen.size == 0 else min(ev.first_s, float(t[seen[0]]))
-            last = np.maximum.accumulate(np.where(mine, t, ev.last_s))
+            last = np.maximum.accumulate(np.concatenate([[ev.last_s], t[seen]]))
             has = (count >= self.rule.min_samples) & (last - first >= self.rule.min_span_s)
             with np.errstate(invalid="ignore", divide="ignore"):
-                deps[:, k] = np.where(has, speed_sum / model_sum - 1.0, np.nan)
+                departure = np.where(has, speed_sum / model_sum - 1.0, np.nan)
+                share = np.stack(
+                    [
+                        np.isfinite(departure),
+                        departure > self.rule.speed_departure,
+                        departure < -self.rule.speed_departure,
+                    ]
+                ).astype(np.int64)
+            before += share[:, 0]
+            changes[:, seen] += np.diff(share, axis=1)
             if seen.size:
                 ev.samples, ev.speed_sum, ev.speed_model_sum = (
                     int(count[-1]),
@@ -199,10 +219,7 @@ class VehicleCheck:
                     float(model_sum[-1]),
                 )
                 ev.first_s, ev.last_s = first, float(last[-1])
-        with np.errstate(invalid="ignore"):
-            faster = (deps > self.rule.speed_departure).sum(axis=1)
-            slower = (deps < -self.rule.speed_departure).sum(axis=1)
-        evidenced = np.isfinite(deps).sum(axis=1)
+        evidenced, faster, slower = before[:, None] + np.cumsum(changes, axis=1)
         out = np.full(n, VehicleFit.FITS, dtype=np.int8)
         out[(faster >= self.needed) | (slower >= self.needed)] = VehicleFit.SPEED_OFF
         out[evidenced < self.needed] = VehicleFit.CHECKING  # (then neither side can reach it either)

@@ -54,13 +54,14 @@ input.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import ndtr, ndtri
 
-from .dynamics import ResponseCarry, first_order_response
+from .dynamics import ResponseCarry, first_order_responses, last_of, previous
 from .equations import current_from_speed, steady_state
 from .params import MotorParams
 
@@ -69,8 +70,10 @@ __all__ = [
     "BalanceCarry",
     "BalanceResult",
     "balance_deviations",
+    "balance_deviations_rows",
     "censored_mean",
     "input_activity",
+    "input_activity_rows",
     "linearised_slopes",
 ]
 
@@ -138,22 +141,54 @@ def input_activity(
     (the larger of a fast and a slow low-pass): a lull of a few seconds in gusty air does not narrow the
     bands while the air is still gusty.
     """
-    carry = carry or ActivityCarry()
     t = np.asarray(time_s, dtype=float)
-    v = np.asarray(voltage_v, dtype=float)
     if t.size == 0:
-        return np.zeros(0), carry
-    prev_v = np.concatenate([[carry.last_v], v[:-1]])
-    dv = v - prev_v
-    prev_dv = np.concatenate([[carry.last_dv], dv[:-1]])
+        return np.zeros(0), carry or ActivityCarry()
+    activity, (new,) = input_activity_rows(
+        t.reshape(1, -1), np.asarray(voltage_v, dtype=float).reshape(1, -1), tau_s, [carry or ActivityCarry()]
+    )
+    return activity[0], new
+
+
+def input_activity_rows(
+    time_s: FloatArray,
+    voltage_v: FloatArray,
+    tau_s: float,
+    carries: list[ActivityCarry],
+    lengths: list[int] | None = None,
+) -> tuple[FloatArray, list[ActivityCarry]]:
+    """:func:`input_activity` of several motors at once: rows of samples (2-D), one carry per row;
+    ``lengths`` each row's number of samples (None: all; the rest is padding after them)."""
+    t, v = time_s, voltage_v
+    rows, n = t.shape
+    counts = [n] * rows if lengths is None else lengths
+    dv = v - previous(v, [c.last_v for c in carries])
+    prev_dv = previous(dv, [c.last_dv for c in carries])
     zigzag = np.maximum(0.0, -dv * prev_dv)
     zigzag = np.where(np.isfinite(zigzag), zigzag, 0.0)
-    fast, response = first_order_response(t, zigzag, tau_s, carry.response)
-    slow, slow_response = first_order_response(t, zigzag, SLOW_FALL * tau_s, carry.slow)
-    last_v = float(v[-1]) if np.isfinite(v[-1]) else carry.last_v
-    last_dv = float(dv[-1]) if np.isfinite(dv[-1]) else 0.0
-    activity = np.sqrt(np.maximum(np.maximum(fast, slow), 0.0))
-    return activity, ActivityCarry(response=response, slow=slow_response, last_v=last_v, last_dv=last_dv)
+    # the fast and the slow low-pass in one call: the same samples, two time constants
+    both, responses = first_order_responses(
+        t,
+        np.concatenate([zigzag, zigzag]),
+        np.repeat([tau_s, SLOW_FALL * tau_s], rows).reshape(-1, 1),
+        [c.response for c in carries] + [c.slow for c in carries],
+        counts * 2,
+    )
+    activity = np.sqrt(np.maximum(np.maximum(both[:rows], both[rows:]), 0.0))
+    news = []
+    for r, (carry, last_v, last_dv) in enumerate(zip(carries, last_of(v, counts), last_of(dv, counts))):
+        if last_v is None:  # a row without samples
+            news.append(carry)
+            continue
+        news.append(
+            ActivityCarry(
+                response=responses[r],
+                slow=responses[rows + r],
+                last_v=last_v if math.isfinite(last_v) else carry.last_v,
+                last_dv=last_dv if math.isfinite(last_dv) else 0.0,
+            )
+        )
+    return activity, news
 
 
 #: below this mean duty the ESC's input current says too little about the motor's (see model/esc.py)
@@ -217,19 +252,77 @@ def balance_deviations(
     NaN speed or current (a lost sample, a missing sensor) hold the low-passes; Δi is NaN where the
     current is NaN, Δω needs only voltage and speed.
     """
-    carry = carry or BalanceCarry()
     t = np.asarray(time_s, dtype=float)
-    v = np.asarray(voltage_v, dtype=float)
-    w = np.asarray(omega_rad_s, dtype=float)
-    i = np.asarray(current_a, dtype=float)
+
+    def row(x: ArrayLike | None) -> FloatArray | None:
+        return None if x is None else np.asarray(x, dtype=float).reshape(1, -1)
+
+    if t.size == 0:
+        empty = np.zeros(0)
+        return BalanceResult(*([empty] * 10)), carry or BalanceCarry()
+    result, (new,) = balance_deviations_rows(
+        params,
+        t.reshape(1, -1),
+        row(voltage_v),  # type: ignore[arg-type]
+        row(omega_rad_s),  # type: ignore[arg-type]
+        row(current_a),  # type: ignore[arg-type]
+        tau_s,
+        activity_tau_s,
+        [carry or BalanceCarry()],
+        activity_ref_v=activity_ref_v,
+        tau_max_s=tau_max_s,
+        input_current_a=row(input_current_a),
+        duty=row(duty),
+    )
+    return BalanceResult(*(np.asarray(getattr(result, f))[0] for f in _RESULT_FIELDS)), new
+
+
+_RESULT_FIELDS = (
+    "voltage_v",
+    "omega_model_rad_s",
+    "current_model_a",
+    "delta_omega_rad_s",
+    "delta_current_a",
+    "omega_mean_rad_s",
+    "current_mean_a",
+    "activity_v",
+    "zigzag_v",
+    "tau_s",
+)
+
+#: the balance rule's low-passed quantities, in the order of :func:`balance_deviations_rows`' one call
+_AVERAGED = ("voltage", "omega", "current", "sensed", "weight", "zero_current", "speed_balance", "electrical")
+
+
+def balance_deviations_rows(
+    params: MotorParams,
+    time_s: FloatArray,
+    voltage_v: FloatArray,
+    omega_rad_s: FloatArray,
+    current_a: FloatArray,
+    tau_s: float,
+    activity_tau_s: float,
+    carries: list[BalanceCarry],
+    lengths: list[int] | None = None,
+    *,
+    activity_ref_v: float = 0.0,
+    tau_max_s: float = 2.0,
+    input_current_a: FloatArray | None = None,
+    duty: FloatArray | None = None,
+) -> tuple[BalanceResult, list[BalanceCarry]]:
+    """:func:`balance_deviations` of several motors of one model at once: rows of samples (2-D), one
+    carry per row; ``lengths`` each row's number of samples (None: all; the rest is padding after them).
+    The eight low-passes of each row run in one call."""
+    t, v, w, i = time_s, voltage_v, omega_rad_s, current_a
+    rows, n = t.shape
+    counts = [n] * rows if lengths is None else lengths
     p = params
-    activity, c_a = input_activity(t, v, activity_tau_s, carry.activity)
+    activity, c_a = input_activity_rows(t, v, activity_tau_s, [c.activity for c in carries], counts)
     # The balances average samples: an ESC that reports less often averages fewer of them in the same
     # time, and its noise is larger by √(interval); the activity that sets bands and low-pass says so.
-    previous_t = np.concatenate([[carry.voltage.time_s], t[:-1]])
-    gaps = t - previous_t
+    gaps = t - previous(t, [c.voltage.time_s for c in carries])
     gaps = np.where(gaps <= MAX_INTERVAL_S, gaps, np.nan)  # NaN holds the low-pass
-    interval, c_dt = first_order_response(t, gaps, INTERVAL_TAU_S, carry.interval)
+    interval, c_dt = first_order_responses(t, gaps, INTERVAL_TAU_S, [c.interval for c in carries], counts)
     interval = np.where(np.isfinite(interval) & (interval > 0), interval, INTERVAL_REF_S)
     zigzag = activity
     activity = activity * np.sqrt(interval / INTERVAL_REF_S)
@@ -239,9 +332,6 @@ def balance_deviations(
     load_a = current_from_speed(p, w)  # the current the load needs at the measured speed
     # Δω from the combination k_t·r_V + R·r_T, which has no current in it.
     speed_balance = p.k_t * (v - p.k_e * w) - p.R_ohm * p.k_t * load_a
-    v_mean, c_v = first_order_response(t, v, tau, carry.voltage)
-    w_mean, c_w = first_order_response(t, w, tau, carry.omega)
-    i_mean, c_i = first_order_response(t, i, tau, carry.current)  # the stall current: every reading
     # The current enters through the electrical balance, weighted as the sensor weights it: an ESC reports
     # its input current s = d·i (sensed and averaged as a shunt does) and d·(V − k_e·ω − R·i) = d·r_V, so
     # mean(d·(V − k_e·ω) − R·s) = mean(d)·r_V for a lasting r_V, however d and i zigzag together (see the
@@ -252,15 +342,21 @@ def balance_deviations(
     else:
         sensed, weight = i, np.ones_like(t)
     weight = np.where(np.isfinite(sensed), weight, np.nan)
-    s_mean, c_s = first_order_response(t, sensed, tau, carry.sensed)
-    d_mean, c_d = first_order_response(t, weight, tau, carry.weight)
     zero = np.where(np.isfinite(sensed), (sensed == 0.0).astype(float), np.nan)
-    zero_share, c_z = first_order_response(t, zero, tau, carry.zero_current)
-    sb_mean, c_sb = first_order_response(t, speed_balance, tau, carry.speed_balance)
     electrical = weight * (v - p.k_e * w) - p.R_ohm * sensed
-    e_mean, c_e = first_order_response(t, electrical, tau, carry.electrical)
+    # every low-pass of every row at once (the stall current: every current reading)
+    k = len(_AVERAGED)
+    means, averaged = first_order_responses(
+        t,  # each motor's times and time constants, shared by its eight quantities
+        np.concatenate([v, w, i, sensed, weight, zero, speed_balance, electrical]),
+        tau,
+        [getattr(c, name) for name in _AVERAGED for c in carries],
+        counts * k,
+    )
+    v_mean, w_mean, i_mean, s_mean, d_mean, zero_share, sb_mean, e_mean = means.reshape(k, rows, n)
     inertia = p.J_kg_m2 or 0.0
-    accel_torque = inertia * (w - w_mean) / tau
+    with np.errstate(divide="ignore", invalid="ignore"):
+        accel_torque = inertia * (w - w_mean) / tau
     accel_torque = np.where(np.isfinite(accel_torque), accel_torque, 0.0)
     sb_mean = sb_mean - p.R_ohm * accel_torque
     # unsigned readings: the zeros were currents at or below zero (see the module doc)
@@ -285,16 +381,12 @@ def balance_deviations(
         zigzag_v=zigzag,
         tau_s=np.broadcast_to(np.asarray(tau, dtype=float), t.shape),
     )
-    new = BalanceCarry(
-        voltage=c_v,
-        omega=c_w,
-        current=c_i,
-        speed_balance=c_sb,
-        electrical=c_e,
-        zero_current=c_z,
-        sensed=c_s,
-        weight=c_d,
-        interval=c_dt,
-        activity=c_a,
-    )
-    return result, new
+    news = [
+        BalanceCarry(
+            **{name: averaged[j * rows + r] for j, name in enumerate(_AVERAGED)},
+            interval=c_dt[r],
+            activity=c_a[r],
+        )
+        for r in range(rows)
+    ]
+    return result, news

@@ -8,9 +8,13 @@ lag of speed toward its steady state with the time constant
 
 (`time_constant_s`). `first_order_response` passes a steady-state prediction through that lag with an
 exact step for every (irregular) sample interval, y_n = a_n·y_{n−1} + (1 − a_n)·x̄_n with
-a_n = exp(−Δt_n/τ_n) and x̄_n the mean input over the interval. It is evaluated in closed form over blocks
-(cumulative sums in log space) so that whole logs run vectorised, and it carries its last output, so that
-the live agent feeding one sample at a time gets the very same numbers.
+a_n = exp(−Δt_n/τ_n) and x̄_n the mean input over the interval. That is an affine recurrence
+y_n = a_n·y_{n−1} + b_n (a hold is a = 1, b = 0; a restart a = 0, b = x_n), which
+`affine_recurrence` evaluates over whole arrays: the samples laid out in columns, the recurrence stepped
+along them for all rows at once, each row's start then taken from the row before (a product of the a's,
+never an exponential that grows). Every step is the sample-by-sample one, in the same order of operations
+within a row, so that a whole log, the live agent's few samples per call and one sample at a time agree to
+rounding (about 1e-16 of the values); the filter carries its last output between calls.
 """
 
 from __future__ import annotations
@@ -24,14 +28,23 @@ from numpy.typing import ArrayLike, NDArray
 
 from .params import MotorParams
 
-__all__ = ["ResponseCarry", "estimate_inertia", "first_order_response", "time_constant_s"]
+__all__ = [
+    "ResponseCarry",
+    "affine_recurrence",
+    "estimate_inertia",
+    "first_order_response",
+    "first_order_responses",
+    "last_of",
+    "previous",
+    "time_constant_s",
+]
 
 FloatArray = NDArray[np.float64]
 
-#: Sum of Δt/τ after which a block is closed (exp(−600) is still a normal float64).
-_BLOCK_DECAY = 600.0
-#: Up to this many samples (the live agent's small batches) the recurrence runs as a plain loop: numpy's
-#: per-call overhead would cost more than the arithmetic.
+#: A step whose Δt/τ reaches this restarts at the target: exp(−600) of the past is below any rounding.
+_RESTART_DECAY = 600.0
+#: Up to this many values (samples × rows: the live agent's small batches) the recurrence runs as a plain
+#: loop: numpy's per-call overhead would cost more than the arithmetic.
 _SCALAR_MAX = 16
 
 
@@ -61,95 +74,246 @@ def first_order_response(
 
     The first sample ever (no carry), and the first finite target after an undefined output, start at
     the target. NaN targets hold the previous output; a NaN time constant means no lag (output = target).
+
+    The carry keeps the last *finite* target: a call that ends on a NaN target hands the next call an
+    older input, which its first interval averages with, where one call over both would take the new
+    target alone. Split right after a lost sample, calls so differ from one whole call in how that one
+    interval's input is averaged (enough to move a state on a band's edge for a sample or two).
     """
-    t = np.asarray(time_s, dtype=float)
     x = np.asarray(target, dtype=float)
-    tau = np.broadcast_to(np.asarray(tau_s, dtype=float), t.shape)
-    n = t.size
+    out, (new,) = first_order_responses(time_s, x.reshape(1, -1), tau_s, (carry,))
+    return out[0], new
+
+
+def first_order_responses(
+    time_s: ArrayLike,
+    targets: ArrayLike,
+    tau_s: ArrayLike,
+    carries: Sequence[ResponseCarry],
+    lengths: Sequence[int] | NDArray[np.integer] | None = None,
+) -> tuple[FloatArray, list[ResponseCarry]]:
+    """:func:`first_order_response` of several targets at once, one per row, each with its own carry.
+
+    ``time_s`` is one row shared by all targets, or T rows: several motors, target row j at the times
+    of row j mod T (so that the targets of several quantities of T motors, stacked quantity by quantity,
+    share their motors' times); ``tau_s`` is a number, one row, T rows, one row per target, or one
+    number per target (a column). Intervals and decays are worked out once per distinct row.
+
+    ``lengths`` gives each row's number of samples when the rows are of different lengths (the rest of a
+    row is padding after its samples, which cannot change them: the recurrence looks back only); a row's
+    carry is taken at its last sample. The results are those of one :func:`first_order_response` per row.
+    """
+    carries = list(carries)
+    rows = len(carries)
+    t = np.asarray(time_s, dtype=float)
+    n = t.shape[-1]
     if n == 0:
-        return np.zeros(0), carry
-    if n <= _SCALAR_MAX:
-        return _response_scalar(t, x, tau, carry)
-    prev_t = np.concatenate([[carry.time_s], t[:-1]])
-    prev_x = np.concatenate([[carry.input], x[:-1]])
-    dt = np.clip(t - prev_t, 0.0, None)
-    decay = np.where(np.isfinite(tau) & (tau > 0), dt / np.where(tau > 0, tau, 1.0), np.inf)
-    decay = np.where(np.isfinite(dt), decay, np.inf)  # no previous sample: jump to the target
-    mean_in = np.where(np.isfinite(prev_x), 0.5 * (prev_x + x), x)
-    held = ~np.isfinite(x)
-    mean_in = np.where(held, np.nan, mean_in)
-    decay = np.where(held, 0.0, decay)  # a missing input: the output holds
-    out = np.empty(n)
-    y0 = carry.output
-    # A reset (no lag, or no previous sample) gives the target itself, held where the target is missing.
-    reset = ~np.isfinite(decay) | (decay >= _BLOCK_DECAY)
-    reset_at = np.flatnonzero(reset)
-    lagged_at = np.flatnonzero(~reset)
-    finite_at = np.flatnonzero(np.isfinite(x))
-    cum = np.cumsum(np.where(reset, 0.0, decay))
-    start = 0
-    while start < n:
-        if reset[start]:
-            # a run of resets, all at once: the targets, the last finite one held over missing ones
-            k = int(np.searchsorted(lagged_at, start))
-            stop = int(lagged_at[k]) if k < lagged_at.size else n
-            values = x[start:stop]
-            last = np.maximum.accumulate(np.where(np.isfinite(values), np.arange(values.size), -1))
-            out[start:stop] = np.where(last >= 0, values[np.maximum(last, 0)], y0)
-            y0 = float(out[stop - 1])
-            start = stop
-            continue
-        k = int(np.searchsorted(reset_at, start))
-        next_reset = int(reset_at[k]) if k < reset_at.size else n
-        if not np.isfinite(y0):
-            # no output yet: undefined until the first finite target, which starts it
-            k = int(np.searchsorted(finite_at, start))
-            first = int(finite_at[k]) if k < finite_at.size else n
-            first = min(first, next_reset)
-            out[start:first] = y0
-            if first < next_reset:
-                y0 = float(x[first])
-                out[first] = y0
-                first += 1
-            start = first
-            continue
-        # a block: until the next reset, or where the accumulated decay would underflow
-        base = cum[start - 1] if start else 0.0
-        end = int(np.searchsorted(cum, base + _BLOCK_DECAY, side="right"))
-        end = min(max(end, start + 1), next_reset)
-        d = decay[start:end]
-        a = np.exp(-d)
-        log_a = -np.cumsum(d)  # log of the product of a over the block
-        weights = (1.0 - a) * np.nan_to_num(mean_in[start:end]) * np.exp(-log_a)
-        block = np.exp(log_a) * (y0 + np.cumsum(weights))
-        out[start:end] = block
-        y0 = float(block[-1])
-        start = end
-    last_input = x[-1] if np.isfinite(x[-1]) else carry.input
-    return out, ResponseCarry(time_s=float(t[-1]), input=float(last_input), output=float(out[-1]))
+        return np.zeros((rows, 0)), carries
+    t = t.reshape(-1, n)
+    x = np.asarray(targets, dtype=float).reshape(rows, n)
+    tau = np.asarray(tau_s, dtype=float)
+    tau = np.broadcast_to(tau, (1, n)) if tau.ndim < 2 else np.broadcast_to(tau, (tau.shape[0], n))
+    counts = [n] * rows if lengths is None else [int(k) for k in lengths]
+    if rows * n <= _SCALAR_MAX:
+        return _responses_scalar(t, x, tau, carries, counts)
+    # Rows come in groups that share the times (row j: times t[j mod T]) and maybe the time constants:
+    # the decays are worked out once per distinct pair
+    times = t.shape[0]
+    groups = rows // times
+    if groups * times != rows or tau.shape[0] not in (1, times, rows):
+        raise ValueError(f"{rows} targets for {times} rows of times and {tau.shape[0]} of time constants")
+    tau3 = tau.reshape(groups if tau.shape[0] == rows and rows > times else 1, -1, n)
+    carry_t = np.array([c.time_s for c in carries]).reshape(groups, times)
+    carry_x = np.array([c.input for c in carries])
+    carry_y = np.array([c.output for c in carries])
+    # The decay of each interval, Δt/τ: the first from each row's carried time
+    first_decay = _decay(np.clip(t[:, 0] - carry_t, 0.0, None), tau3[:, :, 0])
+    decay = _decay(np.clip(t[:, 1:] - t[:, :-1], 0.0, None), tau3[:, :, 1:])
+    a3 = np.empty((groups, times, n))
+    with np.errstate(invalid="ignore"):
+        a3[:, :, 0] = np.exp(-first_decay)
+        a3[:, :, 1:] = np.exp(-decay)
+    lagged3 = np.empty((groups, times, n), dtype=bool)
+    lagged3[:, :, 0] = first_decay < _RESTART_DECAY
+    lagged3[:, :, 1:] = decay < _RESTART_DECAY
+    a, lagged = a3.reshape(rows, n), lagged3.reshape(rows, n)
+    finite = np.isfinite(x)
+    all_finite = bool(finite.all())
+    prev_x = np.empty((rows, n))
+    prev_x[:, 0] = carry_x
+    prev_x[:, 1:] = x[:, :-1]
+    if all_finite and np.isfinite(carry_x).all():
+        mean_in = 0.5 * (prev_x + x)
+    else:
+        mean_in = np.where(np.isfinite(prev_x), 0.5 * (prev_x + x), x)
+    if not all_finite:
+        a[~finite] = 1.0  # a missing input holds the output: a = 1, b = 0
+    # a restart (no lag, or no previous sample) gives the target itself: a = 0, b = x
+    restart = None if lagged.all() else finite & ~lagged
+    if restart is not None:
+        a[restart] = 0.0
+    b = (1.0 - a) * mean_in
+    if not all_finite:
+        b[~finite] = 0.0
+    if restart is not None:
+        b[restart] = x[restart]
+    y0 = carry_y.copy()
+    first = np.zeros(rows, dtype=np.int64)
+    for r in np.flatnonzero(~np.isfinite(carry_y)).tolist():
+        # no output yet: undefined until the first finite target, which starts it
+        first[r] = int(np.argmax(finite[r])) if finite[r].any() else n
+        if first[r] < n:
+            a[r, first[r]], b[r, first[r]] = 0.0, x[r, first[r]]
+        y0[r] = 0.0
+    out = affine_recurrence(a, b, y0)
+    for r in np.flatnonzero(first).tolist():
+        out[r, : first[r]] = carries[r].output
+    # each row's carry at its last sample
+    at = np.maximum(np.asarray(counts) - 1, 0)
+    index = np.arange(rows)
+    last_times = t[index % times, at].tolist()
+    inputs = x[index, at].tolist()
+    outputs = out[index, at].tolist()
+    news = [
+        carry
+        if count == 0
+        else ResponseCarry(time_s=time, input=value if math.isfinite(value) else carry.input, output=output)
+        for carry, count, time, value, output in zip(carries, counts, last_times, inputs, outputs)
+    ]
+    return out, news
+
+
+def _decay(dt: FloatArray, tau: FloatArray) -> FloatArray:
+    """Δt/τ per interval; infinite or NaN (both: a restart) without a lag (τ not finite and positive) or
+    without a previous sample (Δt not finite)."""
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        if np.all(np.isfinite(tau) & (tau > 0)):
+            return dt / tau
+        return np.where(np.isfinite(tau) & (tau > 0), dt / np.where(tau > 0, tau, 1.0), np.inf)
+
+
+def previous(values: ArrayLike, carried: ArrayLike) -> FloatArray:
+    """Each row's previous sample at every sample (rows of samples, 2-D): the carried one first."""
+    v = np.asarray(values, dtype=float)
+    out = np.empty(v.shape)
+    out[:, 0] = carried
+    out[:, 1:] = v[:, :-1]
+    return out
+
+
+def last_of(values: NDArray, lengths: Sequence[int] | NDArray[np.integer]) -> list:
+    """Each row's value at its last sample (rows of ``lengths`` samples, then padding), as Python values;
+    None for a row without samples."""
+    rows = np.arange(len(lengths))
+    at = np.maximum(np.asarray(lengths, dtype=np.int64) - 1, 0)
+    picked = np.asarray(values)[rows, at].tolist()
+    return [value if count > 0 else None for value, count in zip(picked, lengths)]
+
+
+#: columns of :func:`affine_recurrence`'s layout (samples stepped per numpy call: rows × this)
+_COLUMNS = 64
+#: up to this many values in all, the recurrence runs as a plain loop
+_LOOP_MAX = 256
+
+
+def affine_recurrence(a: ArrayLike, b: ArrayLike, y0: ArrayLike) -> FloatArray:
+    """``y_k = a_k·y_(k−1) + b_k`` along a 1-D array or each row of a 2-D one, from ``y_(−1) = y0`` (one
+    per row); all finite.
+
+    Short arrays step sample by sample. Longer ones are laid out as rows of :data:`_COLUMNS` samples
+    and stepped along the columns for all rows at once, each row started from 0; its true start, the
+    previous row's end, follows from the same recurrence over the rows' ends (this function again) and
+    enters each sample times the product of the a's since the row began. Within a row the operations are
+    the sample-by-sample ones; the start's share is added last (a difference of rounding only). The
+    products only shrink (0 ≤ a ≤ 1 in the filter), so nothing grows or overflows.
+    """
+    a_in = np.asarray(a, dtype=float)
+    a2 = a_in.reshape(1, -1) if a_in.ndim == 1 else a_in
+    b2 = np.asarray(b, dtype=float).reshape(a2.shape)
+    series, n = a2.shape
+    start = np.broadcast_to(np.asarray(y0, dtype=float), (series,))
+    if n <= 2 * _COLUMNS:
+        out = np.empty((series, n))
+        if series * n <= _LOOP_MAX and (series == 1 or n > _LOOP_MAX // 8):
+            for r, (ar, br, y) in enumerate(zip(a2.tolist(), b2.tolist(), start.tolist())):
+                row = out[r]
+                for k, (ak, bk) in enumerate(zip(ar, br)):
+                    y = ak * y + bk
+                    row[k] = y
+        else:
+            y_col = start.copy()
+            for k in range(n):
+                y_col = a2[:, k] * y_col + b2[:, k]
+                out[:, k] = y_col
+        return out.reshape(a_in.shape)
+    rows = -(-n // _COLUMNS)
+    size = rows * _COLUMNS
+
+    def columns(values: FloatArray, pad: float) -> FloatArray:
+        # (columns, series × rows): one column of every row of every series is a contiguous vector
+        padded = np.full((series, size), pad)
+        padded[:, :n] = values
+        return (
+            padded.reshape(series, rows, _COLUMNS).transpose(2, 0, 1).reshape(_COLUMNS, series * rows).copy()
+        )
+
+    gain, local = columns(a2, 1.0), columns(b2, 0.0)
+    for j in range(1, _COLUMNS):
+        local[j] += gain[j] * local[j - 1]
+    np.multiply.accumulate(gain, axis=0, out=gain)  # the product of the a's since each row began
+    ends = affine_recurrence(gain[-1].reshape(series, rows), local[-1].reshape(series, rows), start)
+    starts = np.empty((series, rows))
+    starts[:, 0] = start
+    starts[:, 1:] = ends[:, :-1]
+    local += gain * starts.reshape(1, series * rows)
+    out = local.reshape(_COLUMNS, series, rows).transpose(1, 2, 0).reshape(series, size)[:, :n]
+    return out.reshape(a_in.shape)
 
 
 def _response_scalar(
     t: FloatArray, x: FloatArray, tau: FloatArray, carry: ResponseCarry
 ) -> tuple[FloatArray, ResponseCarry]:
-    """:func:`first_order_response` for a few samples: the same recurrence, sample by sample."""
-    out = np.empty(t.size)
-    y, prev_t, prev_x = carry.output, carry.time_s, carry.input
-    for k, (tk, xk, tau_k) in enumerate(zip(t.tolist(), x.tolist(), tau.tolist())):
-        dt = max(tk - prev_t, 0.0) if math.isfinite(tk - prev_t) else math.inf
-        decay = dt / tau_k if math.isfinite(tau_k) and tau_k > 0 else math.inf
-        if not math.isfinite(xk):
-            pass  # a missing input: the output holds
-        elif not math.isfinite(decay) or decay >= _BLOCK_DECAY or not math.isfinite(y):
-            y = xk  # no lag (or no past): the target itself
-        else:
-            mean_in = 0.5 * (prev_x + xk) if math.isfinite(prev_x) else xk
-            a = math.exp(-decay)
-            y = a * y + (1.0 - a) * mean_in
-        out[k] = y
-        prev_t, prev_x = tk, xk
-    last_input = x[-1] if np.isfinite(x[-1]) else carry.input
-    return out, ResponseCarry(time_s=float(t[-1]), input=float(last_input), output=float(out[-1]))
+    """:func:`first_order_response` for a few samples, sample by sample (the recurrence's definition)."""
+    tau_row = np.broadcast_to(tau, t.shape).reshape(1, -1)
+    out, (new,) = _responses_scalar(t.reshape(1, -1), x.reshape(1, -1), tau_row, (carry,), [t.size])
+    return out[0], new
+
+
+def _responses_scalar(
+    t: FloatArray, x: FloatArray, tau: FloatArray, carries: Sequence[ResponseCarry], counts: Sequence[int]
+) -> tuple[FloatArray, list[ResponseCarry]]:
+    """:func:`first_order_responses` for a few samples: the same recurrence, sample by sample."""
+    out = np.full(x.shape, np.nan)
+    news = []
+    times, taus = t.tolist(), tau.tolist()
+    for r, (row, carry, count) in enumerate(zip(x.tolist(), carries, counts)):
+        if count == 0:
+            news.append(carry)
+            continue
+        y, prev_t, prev_x = carry.output, carry.time_s, carry.input
+        row_t = times[r % len(times)][:count]  # the rows' times and time constants repeat (see above)
+        row_tau = taus[r % len(taus)][:count]
+        values = out[r]
+        for k, (tk, xk, tau_k) in enumerate(zip(row_t, row[:count], row_tau)):
+            dt = max(tk - prev_t, 0.0) if math.isfinite(tk - prev_t) else math.inf
+            decay = dt / tau_k if math.isfinite(tau_k) and tau_k > 0 else math.inf
+            if not math.isfinite(xk):
+                pass  # a missing input: the output holds
+            elif not math.isfinite(decay) or decay >= _RESTART_DECAY or not math.isfinite(y):
+                y = xk  # no lag (or no past): the target itself
+            else:
+                mean_in = 0.5 * (prev_x + xk) if math.isfinite(prev_x) else xk
+                a = math.exp(-decay)
+                y = a * y + (1.0 - a) * mean_in
+            values[k] = y
+            prev_t, prev_x = tk, xk
+        last = row[count - 1]
+        news.append(
+            ResponseCarry(
+                time_s=row_t[-1], input=last if math.isfinite(last) else carry.input, output=float(y)
+            )
+        )
+    return out, news
 
 
 def estimate_inertia(

@@ -1,0 +1,170 @@
+"""Several motors in one core call give what one call per motor gives (issue 18's streaming core).
+
+The live agent hands the core every motor's few new samples at once (:meth:`StreamingDiagnoser.update_motors`,
+rows of different lengths); replay runs one motor's whole log per call. A simulated flight with a stall,
+missing samples and six ESCs reporting at their own rates is fed in random chunks both ways, and whole.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mav_motor_health.config import load_profile
+from mav_motor_health.diagnosis.pipeline import MotorBatch, StreamingDiagnoser, diagnose_motor
+from mav_motor_health.diagnosis.plausibility import CurrentSumCheck, PlausibilityRule
+from mav_motor_health.diagnosis.vehicle_check import VehicleCheck, VehicleCheckRule
+from mav_motor_health.telemetry import sources
+
+#: motor 1 stalls at 30 s
+FLIGHT = Path(__file__).resolve().parents[1] / "sitl_logs" / "flight_F4.2_moderate.csv"
+#: columns that are codes or flags: equal exactly; the others to rounding
+DISCRETE = ("state", "announced", "steady", "sensor_flags", "slow_ready")
+
+
+@pytest.fixture(scope="module", params=[False, True], ids=["all samples", "lost samples"])
+def motors(request: pytest.FixtureRequest) -> dict[int, dict[str, np.ndarray]]:
+    table = sources.read(FLIGHT).sorted_by_motor_time()
+    window = (table["time_s"] > 22.0) & (table["time_s"] < 38.0)
+    rng = np.random.default_rng(18)
+    out = {}
+    for motor in table.motors():
+        sel = window & (table["motor"] == motor)
+        cols = {name: np.array(table[name][sel], dtype=float) for name in table.names}
+        if request.param:
+            cols["omega_rad_s"][rng.random(cols["time_s"].size) < 0.03] = np.nan  # lost samples
+            cols["esc_current_a"][rng.random(cols["time_s"].size) < 0.03] = np.nan
+        out[int(motor)] = cols
+    return out
+
+
+def batch(cols: dict[str, np.ndarray], part: slice) -> MotorBatch:
+    return MotorBatch(
+        cols["time_s"][part],
+        cols["voltage_v"][part],
+        cols["omega_rad_s"][part],
+        cols["current_a"][part],
+        cols["bus_voltage_v"][part],
+        command=cols["throttle"][part],
+        sensor_current_a=cols["esc_current_a"][part],
+        extra_flags=np.zeros(cols["time_s"][part].size, dtype=np.int16),
+    )
+
+
+def assert_same(got: dict[str, np.ndarray], want: dict[str, np.ndarray], motor: int) -> None:
+    assert got.keys() == want.keys()
+    for name in want:
+        if name in DISCRETE:
+            np.testing.assert_array_equal(got[name], want[name], err_msg=f"motor {motor}: {name}")
+        else:
+            np.testing.assert_allclose(
+                got[name], want[name], rtol=1e-12, atol=1e-9, equal_nan=True, err_msg=f"motor {motor}: {name}"
+            )
+
+
+@pytest.mark.parametrize("profile_name", ["flight", "flight_dynamic", "testbed"])
+def test_motors_in_one_call_give_what_one_call_per_motor_gives(paper_motor, motors, profile_name) -> None:
+    profile = load_profile(profile_name)
+    rng = np.random.default_rng(7)
+    one_by_one = StreamingDiagnoser(paper_motor, profile, list(motors))
+    together = StreamingDiagnoser(paper_motor, profile, list(motors))
+    position = dict.fromkeys(motors, 0)
+    parts_one: dict[int, list] = {m: [] for m in motors}
+    parts_all: dict[int, list] = {m: [] for m in motors}
+    while any(position[m] < motors[m]["time_s"].size for m in motors):
+        batches = {}
+        for m, cols in motors.items():
+            size = int(rng.integers(0, 12))  # uneven: some motors send nothing in a batch, some a dozen
+            start = position[m]
+            if size == 0 or start >= cols["time_s"].size:
+                continue
+            part = slice(start, start + size)
+            position[m] = min(start + size, cols["time_s"].size)
+            batches[m] = batch(cols, part)
+            b = batches[m]
+            parts_one[m].append(
+                one_by_one.update_many(
+                    m,
+                    b.time_s,
+                    b.voltage_v,
+                    b.omega_rad_s,
+                    b.current_a,
+                    b.bus_voltage_v,
+                    command=b.command,
+                    sensor_current_a=b.sensor_current_a,
+                    extra_flags=b.extra_flags,
+                )
+            )
+        for m, cols in together.update_motors(batches).items():
+            parts_all[m].append(cols)
+    for m, cols in motors.items():
+        alone = {name: np.concatenate([p[name] for p in parts_one[m]]) for name in parts_one[m][0]}
+        rows = {name: np.concatenate([p[name] for p in parts_all[m]]) for name in parts_all[m][0]}
+        assert_same(rows, alone, m)
+        assert together.carries[m].persistence == one_by_one.carries[m].persistence
+        if any(np.isnan(c).any() for c in cols.values()):
+            # A batch that ends on a lost sample carries the low-passes' last finite input, where the
+            # whole array averages the next interval from the sample alone (model/dynamics.py): there
+            # the agent's states may differ from replay's by a sample (reported in issue 18's notes)
+            continue
+        whole, _ = diagnose_motor(
+            paper_motor,
+            profile,
+            cols["time_s"],
+            cols["voltage_v"],
+            cols["omega_rad_s"],
+            cols["current_a"],
+            cols["bus_voltage_v"],
+            command=cols["throttle"],
+            sensor_current_a=cols["esc_current_a"],
+            extra_flags=np.zeros(cols["time_s"].size, dtype=np.int16),
+        )
+        for name in ("state", "announced", "steady"):
+            np.testing.assert_array_equal(rows[name], whole[name], err_msg=f"motor {m}: {name}")
+    if profile_name == "flight":  # the stall was seen, and named the same way in both
+        assert (np.concatenate([p["announced"] for p in parts_all[1]]) != 0).any()
+
+
+def test_vehicle_check_row_by_row_equals_whole_arrays() -> None:
+    rng = np.random.default_rng(3)
+    n = 3000
+    t = np.sort(rng.uniform(0.0, 30.0, n))
+    m = rng.integers(1, 7, n)
+    wm = rng.uniform(50.0, 900.0, n)
+    w = wm * np.where(m <= 4, 0.85, 1.0) * rng.normal(1.0, 0.03, n)  # most motors off the model
+    w[rng.random(n) < 0.02] = np.nan
+    rule = VehicleCheckRule(min_samples=20, min_span_s=1.0)
+    whole = VehicleCheck(rule, [1, 2, 3, 4, 5, 6], 100.0)
+    want = whole._update_arrays(t, m, w, wm, np.isfinite(w) & (wm > 100.0))
+    chunked = VehicleCheck(rule, [1, 2, 3, 4, 5, 6], 100.0)
+    got, k = [], 0
+    while k < n:
+        size = int(rng.integers(1, 40))
+        got.append(chunked.update(t[k : k + size], m[k : k + size], w[k : k + size], wm[k : k + size]))
+        k += size
+    np.testing.assert_array_equal(np.concatenate(got), want)
+    assert set(want.tolist()) >= {1, 2}  # checking, then "does not fit"
+    assert chunked.departures() == whole.departures()
+
+
+def test_current_sum_row_by_row_equals_whole_arrays() -> None:
+    rng = np.random.default_rng(4)
+    n = 4000
+    t = np.sort(rng.uniform(0.0, 40.0, n))
+    m = rng.integers(1, 7, n)
+    esc = rng.uniform(1.0, 6.0, n)
+    esc[rng.random(n) < 0.05] = np.nan
+    battery = np.where(t < 20.0, 21.0, 40.0) + rng.normal(0.0, 0.5, n)  # mis-scaled from 20 s on
+    whole = CurrentSumCheck(PlausibilityRule(), range(1, 7))
+    want = whole.update(t, m, esc, battery)
+    chunked = CurrentSumCheck(PlausibilityRule(), range(1, 7))
+    got, k = [], 0
+    while k < n:
+        size = int(rng.integers(1, 100))  # both the row-by-row and the vectorised sums
+        got.append(chunked.update(t[k : k + size], m[k : k + size], esc[k : k + size], battery[k : k + size]))
+        k += size
+    np.testing.assert_array_equal(np.concatenate(got), want)
+    assert want.any() and not want.all()
+    np.testing.assert_array_equal(chunked.latest, whole.latest)
