@@ -15,8 +15,7 @@ from ..errors import ConfigError
 from ..sim.live import FAULT_CODES, SimVehicle
 from ..sim.scenario import WORLD_SCENARIO_NAMES, load_scenario, world_scenario
 from ..sim.worlds import draw_world
-from ._common import positive_float, socket_url
-from .simulate import world_seed
+from ._common import non_negative_int, positive_float, socket_url
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -42,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--world",
-        type=world_seed,
+        type=non_negative_int,
         default=None,
         metavar="SEED",
         help="fly the randomised world of SEED (its vehicle, motors, ESCs, telemetry)",

@@ -18,18 +18,7 @@ from ..sim.engine import run_scenario
 from ..sim.faults import FaultSpec
 from ..sim.scenario import WORLD_SCENARIO_NAMES, load_scenario, world_scenario
 from ..sim.writers import write_record
-from ._common import positive_float
-
-
-def world_seed(text: str) -> int:
-    """argparse type: a world's seed, a whole number >= 0."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {value}")
-    return value
+from ._common import non_negative_int, positive_float
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -44,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, metavar="FILE", help="output .tlog, .bin or .csv")
     p.add_argument(
         "--world",
-        type=world_seed,
+        type=non_negative_int,
         default=None,
         metavar="SEED",
         help="fly the randomised world of SEED (its vehicle, motors, ESCs, telemetry); prints its report",
