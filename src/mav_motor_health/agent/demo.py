@@ -86,7 +86,7 @@ def demo_summary(agent: Any, scenario: str, fault: FaultPlan | None, flown_s: fl
         "next:",
         "  replay a flight log:    mav-motor-health replay LOG.tlog|.bin|.ulg --out DIR  (then open report.html)",
         "  watch in a browser:     mav-motor-health display --broker-ws ws://HOST:9001  (the agent with --mqtt URL)",
-        "  your own vehicle:      mav-motor-health fit FLIGHT.tlog --out vehicle.toml, then --params vehicle.toml",
+        "  your own vehicle:       mav-motor-health fit FLIGHT.tlog --out vehicle.toml, then --params vehicle.toml",
         "",
     ]
     return "\n".join(lines)
