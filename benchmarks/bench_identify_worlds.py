@@ -62,6 +62,23 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
     world = draw_world(seed)
     truth = world.motor
     started = time.monotonic()
+
+    def result(
+        side_found: str, errors: dict[str, float], determined: dict[str, str], failure: str = ""
+    ) -> WorldResult:
+        return WorldResult(
+            seed,
+            world.kv_rpm_per_v,
+            world.mass_kg,
+            world.rate_hz,
+            world.current.side,
+            side_found,
+            errors,
+            determined,
+            time.monotonic() - started,
+            failure,
+        )
+
     with tempfile.TemporaryDirectory(prefix="mmh-world-") as tmp:
         path = Path(tmp) / f"world{seed}.{fmt}"
         with warnings.catch_warnings():
@@ -70,18 +87,7 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
             try:
                 found = identify_logs([path]).found
             except Exception as exc:  # a benchmark reports every world, a failure too
-                return WorldResult(
-                    seed,
-                    world.kv_rpm_per_v,
-                    world.mass_kg,
-                    world.rate_hz,
-                    world.current.side,
-                    "-",
-                    {},
-                    {},
-                    time.monotonic() - started,
-                    f"{type(exc).__name__}: {exc}",
-                )
+                return result("-", {}, {}, f"{type(exc).__name__}: {exc}")
     p = found.params
     errors = {
         "k_e": p.k_e / truth.k_e - 1.0,
@@ -92,17 +98,7 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
         # without a battery monitor's comparison the sensor's gain is assumed 1: R is R/gain then
         gain = world.current.gain if found.current.gain_from == "assumed" else 1.0
         errors["R_ohm"] = p.R_ohm / (truth.R_ohm / gain) - 1.0
-    return WorldResult(
-        seed,
-        world.kv_rpm_per_v,
-        world.mass_kg,
-        world.rate_hz,
-        world.current.side,
-        found.current.side,
-        errors,
-        dict(found.determined_by),
-        time.monotonic() - started,
-    )
+    return result(found.current.side, errors, dict(found.determined_by))
 
 
 def main(argv: list[str] | None = None) -> int:

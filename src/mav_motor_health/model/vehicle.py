@@ -57,11 +57,6 @@ class VehicleParams:
     source: Mapping[str, str] = field(default_factory=dict)
 
     @classmethod
-    def of_motor(cls, motor: MotorParams) -> VehicleParams:
-        """A vehicle known only by its motor type (no ESC map, no per-motor models)."""
-        return cls(motor=motor)
-
-    @classmethod
     def identified(cls, found: Identification, source: Mapping[str, str] | None = None) -> VehicleParams:
         return cls(
             motor=found.params,
