@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from mav_motor_health.config import load_profile
+from mav_motor_health.diagnosis.noise import BandNoise
 from mav_motor_health.diagnosis.pipeline import MotorBatch, StreamingDiagnoser, diagnose_motor
 from mav_motor_health.diagnosis.plausibility import CurrentSumCheck, PlausibilityRule
 from mav_motor_health.diagnosis.vehicle_check import VehicleCheck, VehicleCheckRule
@@ -64,12 +65,15 @@ def assert_same(got: dict[str, np.ndarray], want: dict[str, np.ndarray], motor: 
             )
 
 
-@pytest.mark.parametrize("profile_name", ["flight", "flight_dynamic", "testbed"])
+@pytest.mark.parametrize("profile_name", ["flight", "flight_dynamic", "testbed", "flight_vehicle"])
 def test_motors_in_one_call_give_what_one_call_per_motor_gives(paper_motor, motors, profile_name) -> None:
     profile = load_profile(profile_name)
     rng = np.random.default_rng(7)
-    one_by_one = StreamingDiagnoser(paper_motor, profile, list(motors))
-    together = StreamingDiagnoser(paper_motor, profile, list(motors))
+    # bands from each motor's own noise (flight_vehicle): every motor a different one, so that a row
+    # given another motor's noise would show
+    noise = {m: BandNoise(6.0 + m, 0.2 + 0.05 * m, 15.0 + m, 0.4) for m in motors}
+    one_by_one = StreamingDiagnoser(paper_motor, profile, list(motors), noise)
+    together = StreamingDiagnoser(paper_motor, profile, list(motors), noise)
     position = dict.fromkeys(motors, 0)
     parts_one: dict[int, list] = {m: [] for m in motors}
     parts_all: dict[int, list] = {m: [] for m in motors}
@@ -120,10 +124,11 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(paper_motor, moto
             command=cols["throttle"],
             sensor_current_a=cols["esc_current_a"],
             extra_flags=np.zeros(cols["time_s"].size, dtype=np.int16),
+            noise=noise[m] if profile.noise_bands else None,
         )
         for name in ("state", "announced", "steady"):
             np.testing.assert_array_equal(rows[name], whole[name], err_msg=f"motor {m}: {name}")
-    if profile_name == "flight":  # the stall was seen, and named the same way in both
+    if profile_name in ("flight", "flight_vehicle"):  # the stall was seen, and named the same way in both
         assert (np.concatenate([p["announced"] for p in parts_all[1]]) != 0).any()
 
 

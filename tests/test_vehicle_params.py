@@ -52,6 +52,7 @@ def test_an_identified_vehicle_survives_the_params_file(identified, tmp_path: Pa
         assert (back.per_motor[n].R_ohm, back.per_motor[n].k_e) == (v.per_motor[n].R_ohm, v.per_motor[n].k_e)
         assert back.noise[n] == pytest.approx(v.noise[n])
         assert back.noise[n]["voltage_v"] > 0 and back.noise[n]["torque_nm"] > 0
+        assert back.noise[n]["speed_rad_s"] > 0 and back.noise[n]["current_a"] > 0  # the band noise
     assert back.source["identified_from"] == str(CALM)
     assert back.missing_for_flight() == []
     # a plain motor file is a vehicle whose ESC map is unknown, and it says which keys it lacks
@@ -209,7 +210,9 @@ def test_the_real_px4_quad_identified_from_its_own_log_replays_without_a_fault(
     assert main(["fit", str(log), "--out", str(vehicle_file)]) == 0
     vehicle = load_vehicle_params(vehicle_file)
     assert vehicle.current is not None and vehicle.current.gain_from == "battery"
-    for profile in ("testbed", "flight"):
+    # each motor's noise measured on the flight, so that flight_vehicle's bands come from this vehicle
+    assert all(vehicle.noise[m]["speed_rad_s"] > 0 for m in range(1, 5)), vehicle.noise
+    for profile in ("testbed", "flight", "flight_vehicle"):
         out = tmp_path / profile
         assert (
             main(["replay", str(log), "--params", str(vehicle_file), "--profile", profile, "--out", str(out)])

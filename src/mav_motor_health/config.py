@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from .diagnosis.noise import NOISE_KEYS
 from .diagnosis.plausibility import PlausibilityRule
 from .diagnosis.profile import PersistenceRule, SteadyRule, ThresholdProfile
 from .diagnosis.vehicle_check import VehicleCheckRule
@@ -285,6 +286,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             slow_band_fraction=p.number("slow_band_fraction", 0.0, minimum=0.0, maximum=1.0),
             min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
             activity_band=activity_band or (),
+            noise_bands=p.number("noise_bands", 0.0, minimum=0.0, maximum=50.0),
             steady=SteadyRule(
                 step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
                 settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
@@ -297,6 +299,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
                     "residual_tau_max_s", 2.0, minimum=0.0, maximum=10.0, unit="s"
                 ),
                 slow_factor=steady.number("slow_factor", 0.0, minimum=0.0, maximum=100.0),
+                bus_ref_v=steady.number("bus_ref_v", 0.0, minimum=0.0, unit="V"),
             ),
             plausibility=PlausibilityRule(
                 **{
@@ -358,6 +361,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
     if profile.activity_band:
         rows = ", ".join("[" + ", ".join(repr(x) for x in row) + "]" for row in profile.activity_band)
         lines.append(f"activity_band = [{rows}]")
+    if profile.noise_bands:
+        lines.append(f"noise_bands = {profile.noise_bands!r}")
     lines += [
         "",
         "[steady]",
@@ -370,6 +375,7 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"activity_ref_v = {profile.steady.activity_ref_v!r}",
         f"residual_tau_max_s = {profile.steady.residual_tau_max_s!r}",
         f"slow_factor = {profile.steady.slow_factor!r}",
+        *([f"bus_ref_v = {profile.steady.bus_ref_v!r}"] if profile.steady.bus_ref_v else []),
         "",
         "[persistence]",
         f"default_announce_s = {profile.persistence.default_announce_s!r}",
@@ -454,7 +460,7 @@ def load_vehicle_params(name_or_path: str | Path = DEFAULT_MOTOR) -> VehiclePara
     for number, section in _motor_tables(top, "noise", path):
         noise[number] = {
             key: section.number(key, minimum=0.0, unit=unit)
-            for key, unit in (("voltage_v", "V"), ("torque_nm", "N*m"))
+            for key, unit in (("voltage_v", "V"), ("torque_nm", "N*m"), *NOISE_KEYS.items())
             if key in section.data
         }
         section.done()

@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from .config import DEFAULT_MOTOR, load_motor_params
+from .config import DEFAULT_MOTOR, MAX_MOTOR_NUMBER, load_motor_params, load_profile
+from .diagnosis import diagnose
+from .diagnosis.noise import BandNoise, measure_band_noise
 from .errors import DataError, FitError
 from .model.identify import Identification, identify
 from .model.params import MotorParams
@@ -32,12 +34,16 @@ __all__ = [
     "is_flight_table",
     "join_flights",
     "provenance",
+    "with_band_noise",
 ]
 
 #: formats that always hold flights (a CSV may hold a flight or a test stand's steps)
 FLIGHT_LOG_SUFFIXES = (".tlog", ".bin", ".log", ".ulg")
 #: the gap laid between two logs on the joined time axis [s]
 GAP_BETWEEN_LOGS_S = 60.0
+#: the profile whose flight rule measures the band noise: its [steady] rule (low-passes, settling) is the
+#: one every profile with ``noise_bands`` must share, since the noise depends on it
+NOISE_PROFILE = "flight_vehicle"
 
 
 @dataclass(frozen=True)
@@ -128,12 +134,34 @@ def identify_logs(
         found = identify(joined, _as_prior(first.params), k=k, name=label)
         prior_text = "weak: the vehicle's own first estimate (no --prior given)"
     paths = tuple(str(p) for p in logs)
+    vehicle = VehicleParams.identified(found, provenance(found, paths, prior_text))
     return IdentifiedVehicle(
-        vehicle=VehicleParams.identified(found, provenance(found, paths, prior_text)),
+        vehicle=with_band_noise(vehicle, tables),
         found=found,
         logs=paths,
         prior=prior_text,
     )
+
+
+def with_band_noise(
+    vehicle: VehicleParams, tables: Sequence[TelemetryTable], profile: str = NOISE_PROFILE
+) -> VehicleParams:
+    """The vehicle with each motor's band noise (:mod:`.diagnosis.noise`) added to its ``noise``: the
+    flight rule of ``profile`` run over its healthy flights with the model identification found."""
+    profile_rules = load_profile(profile)
+    # while the noise is measured, no band: every sample the rule judges counts (a band would set aside
+    # those the log's pairing makes doubtful, and those are part of the noise the bands must cover)
+    unbounded = {m: BandNoise(math.inf, math.inf) for m in range(1, MAX_MOTOR_NUMBER + 1)}
+    diagnosed = []
+    for table in tables:
+        calibrated = vehicle.calibrate(table)
+        models = vehicle.models(range(1, max(int(m) for m in calibrated.motors()) + 1))
+        diagnosed.append(diagnose(calibrated, models, profile_rules, unbounded))
+    measured = measure_band_noise(diagnosed, profile_rules.min_command)
+    noise = {m: dict(v) for m, v in vehicle.noise.items()}
+    for motor, band in measured.items():
+        noise.setdefault(motor, {}).update(band.as_mapping())
+    return replace(vehicle, noise=noise)
 
 
 def _as_prior(params: MotorParams) -> MotorParams:

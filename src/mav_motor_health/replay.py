@@ -30,6 +30,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from .diagnosis.noise import band_noise_of
 from .diagnosis.pipeline import DIAGNOSIS_COLUMNS, diagnose
 from .diagnosis.profile import ThresholdProfile
 from .diagnosis.states import MotorState
@@ -375,7 +376,9 @@ def replay_log(
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if len(table) == 0:
         raise DataError("the log's ESC telemetry has no samples for any motor", path=log)
+    noise = None
     if isinstance(params, VehicleParams):  # the vehicle's ESC map and current sensing, then its motors
+        noise = band_noise_of(params.noise)  # the noise its bands are measured in (noise_bands profiles)
         table = params.calibrate(table)
         params = params.models(range(1, max(table.motors()) + 1))
     if calibrate_s is not None:
@@ -397,7 +400,7 @@ def replay_log(
         if reissue_warnings:
             warnings.warn(f"{log}: {pairing}", UserWarning, stacklevel=2)
     bar.update(1, 4, f"diagnosing {len(table.motors())} motors")
-    result = diagnose(table, params, profile)  # the same core the live agent runs
+    result = diagnose(table, params, profile, noise)  # the same core the live agent runs
     unfit = vehicle_note(result.meta, params)
     if unfit is not None:
         warned += (unfit,)

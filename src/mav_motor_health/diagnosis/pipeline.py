@@ -23,6 +23,7 @@ from ..model.equations import SteadyState, current_from_speed, steady_state
 from ..model.params import MotorParams
 from ..model.predict import predict_steady
 from ..telemetry.table import TelemetryTable
+from .noise import BandNoise, require_noise
 from .pairing import PairingCarry, pairing_error_rows
 from .persistence import PersistenceCarry, announce
 from .plausibility import (
@@ -32,7 +33,7 @@ from .plausibility import (
     SensorIssue,
     check_motor_rows,
 )
-from .profile import ThresholdProfile
+from .profile import SteadyRule, ThresholdProfile
 from .stall import StallCarry, stall_mean_rows
 from .states import MotorState
 from .steady import SteadyCarry, steady_mask_rows, warm_mask_rows
@@ -117,6 +118,7 @@ def diagnose_motor(
     extra_flags: NDArray[np.int16] | None = None,
     context: Mapping[str, NDArray[np.float64]] | None = None,
     pairing_s: float | None = None,
+    noise: BandNoise | None = None,
 ) -> tuple[dict[str, NDArray], MotorCarry]:
     """Diagnose one motor's samples (increasing time); returns result columns and the new carry.
 
@@ -128,7 +130,8 @@ def diagnose_motor(
     base equations (a fitted effect's extra terms are not yet part of its balances). ``pairing_s`` is how
     far apart the source may have paired each sample and its command (a log's ``meta["pairing_s"]``;
     None or 0: the command of the sample's own instant), which the balance rule weighs
-    (:mod:`.pairing`).
+    (:mod:`.pairing`). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
+    bands from (:mod:`.noise`).
     """
 
     def row(x: NDArray | None, dtype: type = float) -> NDArray | None:
@@ -148,6 +151,7 @@ def diagnose_motor(
         extra_flags=row(extra_flags, np.int16),
         context=None if context is None else {k: np.asarray(v).reshape(1, -1) for k, v in context.items()},
         pairing_s=pairing_s,
+        noise=None if noise is None else [noise],
     )
     return {name: values[0] for name, values in cols.items()}, new
 
@@ -168,6 +172,7 @@ def diagnose_motors(
     extra_flags: NDArray[np.int16] | None = None,
     context: Mapping[str, NDArray[np.float64]] | None = None,
     pairing_s: float | None = None,
+    noise: Sequence[BandNoise] | None = None,
 ) -> tuple[dict[str, NDArray], list[MotorCarry]]:
     """:func:`diagnose_motor` for several motors of one model at once: one row of samples per motor.
 
@@ -177,6 +182,7 @@ def diagnose_motors(
     change their results (every rule looks back only) and whose results mean nothing. Every step runs once for all rows, so a few
     samples of six motors cost about what a few samples of one did. Returns 2-D result columns and the
     rows' new carries; each row's results are those :func:`diagnose_motor` gives for that motor alone.
+    ``noise``: each row's motor noise, required by a profile with ``noise_bands``.
     """
     t = np.asarray(time_s, dtype=float)
     rows, n = t.shape
@@ -196,6 +202,9 @@ def diagnose_motors(
     activity: NDArray[np.float64] | None = None
     judged_v = v
     if rule.kind == "balance":
+        # volts of the rule scaled with the vehicle's bus voltage (a 12S vehicle's input moves 3.3 times
+        # the volts of a 3S one for the same command)
+        volts = _bus_scale(rule, bus_voltage_v, t.shape)
         bal, balance_carries = balance_deviations_rows(
             params,
             t,
@@ -206,7 +215,7 @@ def diagnose_motors(
             rule.activity_tau_s,
             balance_carries,
             counts,
-            activity_ref_v=rule.activity_ref_v,
+            activity_ref_v=rule.activity_ref_v * volts,
             tau_max_s=rule.residual_tau_max_s,
             input_current_a=sensor_current_a if command is not None else None,
             duty=command if sensor_current_a is not None else None,
@@ -227,7 +236,7 @@ def diagnose_motors(
         # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air
         # is no step at all) puts two operating points into the low-passes: judge after settle_s. A new
         # stream (the first sample, or after a gap) waits until the activity is known too.
-        step_v = rule.step_v + 3.0 * np.nan_to_num(bal.zigzag_v)  # the jumps as measured, not scaled
+        step_v = rule.step_v * volts + 3.0 * np.nan_to_num(bal.zigzag_v)  # the jumps as measured, not scaled
         # A motor whose low-passed input is at idle (below min_command: spin-down, braking with its current
         # unread) restarts the wait: when it comes back the low-passes still hold the idle. The low-passed
         # input, not the sample: in gusty air single commands dip to idle and back all the time.
@@ -318,7 +327,12 @@ def diagnose_motors(
     )
     if extra_flags is not None:
         flags = flags | extra_flags
-    speed_band, current_band, current_band_below = profile.bands(judged_v, activity)
+    speed_band: NDArray[np.float64] | float
+    if profile.noise_bands > 0:
+        speed_band, current_band = _noise_bands(profile, noise, activity, t.shape)
+        current_band_below = current_band.copy()
+    else:
+        speed_band, current_band, current_band_below = profile.bands(judged_v, activity)
     pairing_error = np.full(t.shape, np.nan)
     pairing_carries = [c.pairing for c in carries]
     if rule.kind == "balance" and pairing_s:
@@ -457,6 +471,34 @@ _RESULT_COLUMNS = (
 )
 
 
+def _bus_scale(
+    rule: SteadyRule, bus_voltage_v: NDArray[np.float64] | None, shape: tuple[int, ...]
+) -> NDArray[np.float64] | float:
+    """What the rule's volts (``step_v``, ``activity_ref_v``) are multiplied by at each sample: the bus
+    voltage over ``bus_ref_v`` where the rule scales with it and the sample has one, else 1."""
+    if not rule.bus_ref_v > 0 or bus_voltage_v is None:
+        return 1.0
+    bus = np.broadcast_to(np.asarray(bus_voltage_v, dtype=float), shape)
+    with np.errstate(invalid="ignore"):
+        return np.where(np.isfinite(bus) & (bus > 0), bus / rule.bus_ref_v, 1.0)
+
+
+def _noise_bands(
+    profile: ThresholdProfile,
+    noise: Sequence[BandNoise] | None,
+    activity: NDArray[np.float64] | None,
+    shape: tuple[int, ...],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The speed and current bands of each row: ``noise_bands`` times its motor's σ(activity)."""
+    if noise is None or len(noise) != shape[0]:
+        raise ValueError(f"profile {profile.name!r} needs each motor's noise (noise_bands); none given")
+    a = np.zeros(shape) if activity is None else activity
+    speed, current = np.empty(shape), np.empty(shape)
+    for r, motor_noise in enumerate(noise):
+        speed[r], current[r] = motor_noise.sigmas(a[r])
+    return profile.noise_bands * speed, profile.noise_bands * current
+
+
 def _steady_model(
     params: MotorParams,
     v: NDArray[np.float64],
@@ -521,13 +563,20 @@ def _current_sum_flags(table: TelemetryTable, profile: ThresholdProfile) -> NDAr
 
 
 def diagnose(
-    table: TelemetryTable, params: MotorParams | dict[int, MotorParams], profile: ThresholdProfile
+    table: TelemetryTable,
+    params: MotorParams | dict[int, MotorParams],
+    profile: ThresholdProfile,
+    noise: Mapping[int, BandNoise] | None = None,
 ) -> TelemetryTable:
     """Diagnose every motor of a telemetry table; returns a table with :data:`DIAGNOSIS_COLUMNS` first.
 
-    ``params`` is one motor model for all motors, or a model per motor number.
+    ``params`` is one motor model for all motors, or a model per motor number; ``noise`` each motor's
+    noise (:mod:`.noise`), which a profile with ``noise_bands`` requires (a clear error names the first
+    motor without it).
     """
     ordered = table.sorted_by_motor_time()
+    if profile.noise_bands > 0:
+        noise = require_noise(noise, [int(m) for m in ordered.motors()], profile.name)
     voltage = ordered.voltage_v()
     bus = ordered.get("bus_voltage_v")
     command = ordered.get("throttle")
@@ -593,6 +642,7 @@ def diagnose(
             extra_flags=part(sum_flags, sel),
             context=context,
             pairing_s=None if pairing is None else float(pairing),
+            noise=None if noise is None else noise.get(int(motor)),
         )
         for name, values in cols.items():
             out[name][sel] = values
@@ -665,9 +715,13 @@ class StreamingDiagnoser:
         params: MotorParams | dict[int, MotorParams],
         profile: ThresholdProfile,
         motors: Sequence[int] = (),
+        noise: Mapping[int, BandNoise] | None = None,
     ) -> None:
         self.params = params
         self.profile = profile
+        self.noise = dict(noise or {})
+        if profile.noise_bands > 0:  # refused now, not at the first sample in flight
+            require_noise(self.noise, list(motors), profile.name)
         self.carries: dict[int, MotorCarry] = {}
         self.vehicle = self.vehicle_check_for(profile, motors)
 
@@ -780,8 +834,12 @@ class StreamingDiagnoser:
             extra_flags=extra_flags,
             context=context,
             pairing_s=pairing_s,
+            noise=self._noise_of([motor])[0] if self.profile.noise_bands > 0 else None,
         )
         return cols
+
+    def _noise_of(self, motors: list[int]) -> list[BandNoise]:
+        return list(require_noise(self.noise, motors, self.profile.name).values())
 
     def update_motors(
         self, batches: Mapping[int, MotorBatch], pairing_s: float | None = None
@@ -856,6 +914,7 @@ class StreamingDiagnoser:
             sensor_current_a=rows("sensor_current_a"),
             extra_flags=rows("extra_flags", np.int16, 0),
             pairing_s=pairing_s,
+            noise=self._noise_of(motors) if self.profile.noise_bands > 0 else None,
         )
         results = {}
         for r, (motor, count, carry) in enumerate(zip(motors, counts, carries)):

@@ -46,6 +46,10 @@ class SteadyRule:
     ``residual_tau_max_s``). ``slow_factor`` > 0 (≥ 1) adds a slow look (balance rule only): the
     deviations low-passed again with ``slow_factor`` times that time constant, judged ``slow_factor`` ×
     ``settle_s`` after a step, against the bands narrowed to the profile's ``slow_band_fraction``.
+
+    ``bus_ref_v`` > 0 (balance rule): ``step_v`` and ``activity_ref_v`` are volts at this bus voltage and
+    scale with the vehicle's (a step of 0.8 V at 11.1 V is one of 2.4 V at 33.3 V: the same command
+    change); 0, the default: volts as they are.
     """
 
     step_v: float = 0.2
@@ -57,6 +61,7 @@ class SteadyRule:
     activity_ref_v: float = 0.0
     residual_tau_max_s: float = 2.0
     slow_factor: float = 0.0
+    bus_ref_v: float = 0.0
 
     def __post_init__(self) -> None:
         if not (self.slow_factor == 0 or self.slow_factor >= 1):
@@ -69,6 +74,8 @@ class SteadyRule:
                 key="steady.residual_tau_s",
                 expected='a time constant > 0 s for kind = "balance"',
             )
+        if not self.bus_ref_v >= 0:
+            raise ConfigError(f"{self.bus_ref_v!r}", key="steady.bus_ref_v", expected="a voltage >= 0 V")
         if not self.activity_tau_s > 0:
             raise ConfigError(
                 f"{self.activity_tau_s!r}", key="steady.activity_tau_s", expected="a time constant > 0 s"
@@ -170,6 +177,10 @@ class ThresholdProfile:
     number, ``[..., current_above_a, current_below_a]``, widens it above and below the model apart (in
     gusty air the healthy current deviation is skewed, see docs/flight.md). Linear in activity, held at
     the end rows.
+
+    ``noise_bands`` (n > 0, or 0): the bands are n times each motor's own noise σ(a), measured by
+    identification on the vehicle's healthy flight (:mod:`.noise`); ``speed_band_rad_s``,
+    ``current_band_a`` and ``activity_band`` are then not used. 0, the default: the absolute bands.
     """
 
     name: str
@@ -186,6 +197,7 @@ class ThresholdProfile:
     slow_band_fraction: float = 0.0
     min_command: float = 0.0
     activity_band: tuple[tuple[float, ...], ...] = ()
+    noise_bands: float = 0.0
     steady: SteadyRule = field(default_factory=SteadyRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
@@ -234,6 +246,12 @@ class ThresholdProfile:
                 f"{self.joint_band_sum!r}",
                 key="joint_band_sum",
                 expected="a sum of band shares between 1 and 2, or 0 (off)",
+            )
+        if not (self.noise_bands == 0 or 1 <= self.noise_bands <= 50):
+            raise ConfigError(
+                f"{self.noise_bands!r}",
+                key="noise_bands",
+                expected="a number of the vehicle's noise units between 1 and 50, or 0 (absolute bands)",
             )
         if not 0 <= self.slow_band_fraction <= 1:
             raise ConfigError(

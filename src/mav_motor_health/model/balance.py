@@ -305,7 +305,7 @@ def balance_deviations_rows(
     carries: list[BalanceCarry],
     lengths: list[int] | None = None,
     *,
-    activity_ref_v: float = 0.0,
+    activity_ref_v: float | FloatArray = 0.0,
     tau_max_s: float = 2.0,
     input_current_a: FloatArray | None = None,
     duty: FloatArray | None = None,
@@ -327,7 +327,7 @@ def balance_deviations_rows(
     zigzag = activity
     activity = activity * np.sqrt(interval / INTERVAL_REF_S)
     tau: FloatArray | float = tau_s
-    if activity_ref_v > 0:
+    if np.any(np.asarray(activity_ref_v) > 0):  # (per sample where the rule scales with the bus voltage)
         tau = np.clip(tau_s * activity / activity_ref_v, tau_s, max(tau_s, tau_max_s))
     load_a = current_from_speed(p, w)  # the current the load needs at the measured speed
     # Δω from the combination k_t·r_V + R·r_T, which has no current in it.

@@ -1,0 +1,191 @@
+"""Bands in units of the vehicle's own noise (issue 17, item 1).
+
+A profile with absolute bands (±9.4 rad/s, ±0.34 A...) carries the numbers of the vehicle it was tuned
+on into every other: another motor, another ESC, another telemetry rate make the healthy deviations
+larger or smaller, and the same band is then either a stream of false events or blind. Here the bands
+come from the vehicle instead. Identification (``fit LOG --out vehicle.toml``) runs the flight rule over
+the vehicle's healthy flight with the model it found and measures, per motor, how far the judged
+deviations of speed and current (:mod:`..model.balance`) stray from the model, and how that grows with
+the input activity:
+
+    σ(a) = √(σ₀² + (c·a)²)
+
+with ``a`` the input activity [V] the flight rule measures (how much the input zigzags between samples).
+σ is measured on the tail, not the middle: in each activity bin the 99th percentile of |deviation|
+divided by 2.576 (where a Gaussian's 99th percentile of |x| lies), because the tail is what makes false
+events; σ₀ and c come from a non-negative least-squares fit of σ² on a² over the bins. A motor with too
+few judged samples of its own takes the vehicle's (all motors pooled): the six motors share one type.
+
+A profile then sets ``noise_bands = n``: the bands are n·σ(a) of each motor, a dimensionless number that
+is the same for every vehicle. A vehicle file without the noise cannot be diagnosed with such a profile;
+:func:`require_noise` says which key is missing and how to get it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import nnls
+
+from ..errors import ConfigError
+from ..telemetry.table import TelemetryTable
+from .plausibility import CURRENT_UNTRUSTED
+
+__all__ = ["NOISE_KEYS", "BandNoise", "band_noise_of", "measure_band_noise", "require_noise"]
+
+#: the keys of a vehicle file's ``[noise.N]`` that :class:`BandNoise` reads, with their units
+NOISE_KEYS = {
+    "speed_rad_s": "rad/s",
+    "speed_rad_s_per_v": "rad/s per V of input activity",
+    "current_a": "A",
+    "current_a_per_v": "A per V of input activity",
+    "band_samples": "judged samples",
+}
+#: the share of |deviation| below the measured tail, and where a Gaussian's lies (in σ)
+TAIL_SHARE = 0.99
+TAIL_SIGMAS = 2.5758293035489
+#: fewer judged samples than this: the motor takes the vehicle's noise (all motors pooled)
+MIN_MOTOR_SAMPLES = 200
+#: the fewest samples of an activity bin
+MIN_BIN_SAMPLES = 40
+#: at most this many activity bins
+MAX_BINS = 6
+
+
+@dataclass(frozen=True)
+class BandNoise:
+    """One motor's healthy spread of the judged deviations: σ(a) = √(σ₀² + (c·a)²) for speed and current
+    (current NaN: the ESC reports no usable current, the speed-only path judges)."""
+
+    speed_rad_s: float
+    current_a: float
+    speed_rad_s_per_v: float = 0.0
+    current_a_per_v: float = 0.0
+    band_samples: int = 0
+
+    def sigmas(self, activity_v: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """σ of the speed [rad/s] and current [A] deviations at each input activity [V]."""
+        a = np.nan_to_num(np.asarray(activity_v, dtype=float))
+        speed = np.hypot(self.speed_rad_s, self.speed_rad_s_per_v * a)
+        current = np.hypot(self.current_a, self.current_a_per_v * a)
+        if not math.isfinite(self.current_a):
+            current = np.full(a.shape, np.inf)  # no usable current: nothing to compare with
+        return speed, current
+
+    def as_mapping(self) -> dict[str, float]:
+        """The ``[noise.N]`` keys of a vehicle file."""
+        return {
+            "speed_rad_s": self.speed_rad_s,
+            "speed_rad_s_per_v": self.speed_rad_s_per_v,
+            "current_a": self.current_a,
+            "current_a_per_v": self.current_a_per_v,
+            "band_samples": float(self.band_samples),
+        }
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, float]) -> BandNoise | None:
+        """The band noise of a ``[noise.N]`` table; None where it has no ``speed_rad_s`` (a vehicle file
+        written before the noise was measured)."""
+        if "speed_rad_s" not in values:
+            return None
+        return cls(
+            speed_rad_s=float(values["speed_rad_s"]),
+            current_a=float(values.get("current_a", math.nan)),
+            speed_rad_s_per_v=float(values.get("speed_rad_s_per_v", 0.0)),
+            current_a_per_v=float(values.get("current_a_per_v", 0.0)),
+            band_samples=int(values.get("band_samples", 0)),
+        )
+
+
+def _tail_sigma(deviation: NDArray[np.float64]) -> float:
+    return float(np.quantile(np.abs(deviation), TAIL_SHARE) / TAIL_SIGMAS)
+
+
+def _fit_growth(activity: NDArray[np.float64], deviation: NDArray[np.float64]) -> tuple[float, float]:
+    """σ₀ and c of σ(a) = √(σ₀² + (c·a)²) from the tail of |deviation| in activity bins."""
+    bins = max(1, min(MAX_BINS, activity.size // MIN_BIN_SAMPLES))
+    edges = np.quantile(activity, np.linspace(0.0, 1.0, bins + 1))
+    which = np.clip(np.searchsorted(edges, activity, side="right") - 1, 0, bins - 1)
+    centres, sigmas = [], []
+    for b in range(bins):
+        sel = which == b
+        if np.count_nonzero(sel) >= MIN_BIN_SAMPLES or bins == 1:
+            centres.append(float(np.median(activity[sel])))
+            sigmas.append(_tail_sigma(deviation[sel]))
+    a, s = np.asarray(centres), np.asarray(sigmas)
+    if a.size < 2 or np.ptp(a) <= 0:
+        return _tail_sigma(deviation), 0.0
+    (s0_sq, c_sq), _ = nnls(np.column_stack([np.ones_like(a), a**2]), s**2)
+    s0 = math.sqrt(s0_sq)
+    if not s0 > 0:  # all of it grows with the activity: keep a floor at the quietest bin's
+        s0 = float(np.min(s))
+    return s0, math.sqrt(c_sq)
+
+
+def measure_band_noise(
+    diagnosed: TelemetryTable | Sequence[TelemetryTable], min_command: float = 0.0
+) -> dict[int, BandNoise]:
+    """Each motor's band noise from diagnosed healthy flights (:func:`~.pipeline.diagnose` output of the
+    flight rule): its judged samples (steady, commanded above ``min_command``, no sensor issue) and their
+    deviations from the model. Motors with fewer than :data:`MIN_MOTOR_SAMPLES` judged samples take the
+    vehicle's (all motors pooled); none at all if the vehicle has fewer."""
+    tables = [diagnosed] if isinstance(diagnosed, TelemetryTable) else list(diagnosed)
+
+    def column(name: str, dtype: type = float) -> NDArray:
+        return np.concatenate([np.asarray(d[name], dtype=dtype) for d in tables]) if tables else np.zeros(0)
+
+    judged = column("steady", bool)
+    if min_command > 0 and all("throttle" in d.names for d in tables):
+        judged &= column("throttle") >= min_command
+    dw = column("omega_judged_rad_s") - column("omega_model_rad_s")
+    di = column("current_judged_a") - column("current_model_a")
+    activity = np.nan_to_num(column("input_activity_v"))
+    judged &= np.isfinite(dw)
+    current_ok = judged & np.isfinite(di) & ((column("sensor_flags", np.int64) & CURRENT_UNTRUSTED) == 0)
+    motors = column("motor", np.int64)
+
+    def noise_of(speed_rows: NDArray[np.bool_], current_rows: NDArray[np.bool_]) -> BandNoise:
+        s0, sc = _fit_growth(activity[speed_rows], dw[speed_rows])
+        c0, cc = math.nan, 0.0
+        if np.count_nonzero(current_rows) >= MIN_MOTOR_SAMPLES:
+            c0, cc = _fit_growth(activity[current_rows], di[current_rows])
+        return BandNoise(s0, c0, sc, cc, int(np.count_nonzero(speed_rows)))
+
+    if np.count_nonzero(judged) < MIN_MOTOR_SAMPLES:
+        return {}
+    pooled = noise_of(judged, current_ok)
+    out = {}
+    for motor in np.unique(motors):
+        own = motors == motor
+        if np.count_nonzero(judged & own) >= MIN_MOTOR_SAMPLES:
+            out[int(motor)] = noise_of(judged & own, current_ok & own)
+        else:
+            out[int(motor)] = pooled
+    return out
+
+
+def band_noise_of(noise: Mapping[int, Mapping[str, float]]) -> dict[int, BandNoise]:
+    """The band noise of each motor of a vehicle file's ``[noise.N]`` tables (those that have it)."""
+    found = {int(m): BandNoise.from_mapping(values) for m, values in noise.items()}
+    return {m: n for m, n in found.items() if n is not None}
+
+
+def require_noise(
+    noise: Mapping[int, BandNoise | None] | None, motors: Sequence[int], profile_name: str
+) -> dict[int, BandNoise]:
+    """The band noise of every motor in ``motors``; a clear error naming the first motor without it."""
+    found = dict(noise or {})
+    for motor in motors:
+        if found.get(motor) is None:
+            raise ConfigError(
+                f"profile {profile_name!r} sets its bands in units of the vehicle's noise, and the "
+                f"vehicle's params give none for motor {motor}",
+                key=f"noise.{motor}.speed_rad_s",
+                expected="a vehicle file written by `mav-motor-health fit FLIGHT_LOG --out vehicle.toml` "
+                "(it measures the noise), or a profile with absolute bands (--profile flight)",
+            )
+    return {m: found[m] for m in motors}  # type: ignore[misc]

@@ -1,0 +1,137 @@
+"""Bands in units of the vehicle's own noise (issue 17, item 1; diagnosis/noise.py): measured from a
+healthy flight, carried by the vehicle file, required by a profile with ``noise_bands``."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mav_motor_health.cli import main
+from mav_motor_health.config import dump_vehicle_params, load_motor_params, load_profile, load_vehicle_params
+from mav_motor_health.diagnosis.noise import BandNoise, band_noise_of, measure_band_noise
+from mav_motor_health.diagnosis.pipeline import StreamingDiagnoser, diagnose
+from mav_motor_health.errors import ConfigError
+from mav_motor_health.model.vehicle import VehicleParams
+from mav_motor_health.telemetry import sources
+from mav_motor_health.telemetry.table import TelemetryTable
+
+SITL_LOGS = Path(__file__).resolve().parents[1] / "sitl_logs"
+FLIGHT = SITL_LOGS / "flight_F4.2_moderate.csv"  # motor 1 stalls at 30 s
+
+
+def diagnosed_table(rng: np.random.Generator, counts: dict[int, int]) -> TelemetryTable:
+    """What the flight rule's output looks like on a healthy flight whose deviations are Gaussian with
+    σ_ω = √(5² + (20·a)²) rad/s and σ_i = √(0.3² + (1.0·a)²) A at input activity a."""
+    cols: dict[str, list] = {k: [] for k in ("time_s", "motor", "a", "dw", "di")}
+    for motor, n in counts.items():
+        a = rng.uniform(0.0, 1.0, n)
+        cols["time_s"].append(np.arange(n) * 0.02)
+        cols["motor"].append(np.full(n, motor))
+        cols["a"].append(a)
+        cols["dw"].append(rng.normal(0.0, np.hypot(5.0, 20.0 * a)))
+        cols["di"].append(rng.normal(0.0, np.hypot(0.3, 1.0 * a)))
+    c = {k: np.concatenate(v) for k, v in cols.items()}
+    n = c["time_s"].size
+    model_w, model_i = np.full(n, 600.0), np.full(n, 5.0)
+    return TelemetryTable(
+        {
+            "time_s": c["time_s"],
+            "motor": c["motor"],
+            "omega_rad_s": model_w + c["dw"],
+            "current_a": model_i + c["di"],
+            "voltage_v": np.full(n, 8.0),
+            "steady": np.ones(n, dtype=bool),
+            "throttle": np.full(n, 0.5),
+            "omega_judged_rad_s": model_w + c["dw"],
+            "omega_model_rad_s": model_w,
+            "current_judged_a": model_i + c["di"],
+            "current_model_a": model_i,
+            "input_activity_v": c["a"],
+            "sensor_flags": np.zeros(n, dtype=np.int16),
+        }
+    )
+
+
+def test_the_measured_noise_recovers_a_known_spread_and_its_growth_with_activity() -> None:
+    table = diagnosed_table(np.random.default_rng(17), {1: 6000, 2: 6000, 3: 60})
+    noise = measure_band_noise(table, min_command=0.2)
+    for motor in (1, 2):
+        n = noise[motor]
+        assert n.band_samples == 6000
+        assert n.speed_rad_s == pytest.approx(5.0, rel=0.25)
+        assert n.speed_rad_s_per_v == pytest.approx(20.0, rel=0.15)
+        assert n.current_a == pytest.approx(0.3, rel=0.25)
+        assert n.current_a_per_v == pytest.approx(1.0, rel=0.15)
+        # and the band it gives at high activity is the spread there, not the quiet one
+        speed, current = n.sigmas(np.array([0.0, 1.0]))
+        assert speed[1] == pytest.approx(np.hypot(5.0, 20.0), rel=0.1)
+        assert current[1] == pytest.approx(np.hypot(0.3, 1.0), rel=0.1)
+    # a motor with too few judged samples of its own takes the vehicle's (all motors pooled)
+    assert noise[3].band_samples == 12060
+    # a flight with nearly nothing judged gives no noise at all rather than a guess
+    assert measure_band_noise(diagnosed_table(np.random.default_rng(1), {1: 50, 2: 50})) == {}
+
+
+def test_a_vehicle_file_carries_the_band_noise_and_reads_it_back(tmp_path: Path) -> None:
+    noise = {1: BandNoise(4.2, 0.31, 12.5, 0.8, 900), 2: BandNoise(3.9, float("nan"), 10.0, 0.0, 850)}
+    vehicle = VehicleParams(
+        motor=load_motor_params("paper_x2212"), noise={m: n.as_mapping() for m, n in noise.items()}
+    )
+    path = tmp_path / "vehicle.toml"
+    path.write_text(dump_vehicle_params(vehicle), encoding="utf-8")
+    back = band_noise_of(load_vehicle_params(path).noise)
+    assert back[1] == noise[1]
+    # a motor without a usable current keeps its speed noise; its current band is infinite (speed only)
+    assert back[2].speed_rad_s == 3.9 and np.isnan(back[2].current_a)
+    assert np.isinf(back[2].sigmas(np.array([0.5]))[1]).all()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(path.read_text(encoding="utf-8").replace("speed_rad_s = 4.2", "speed_rad_s = -4.2"))
+    with pytest.raises(ConfigError) as err:
+        load_vehicle_params(bad)
+    assert "noise.1.speed_rad_s" in str(err.value) and str(bad) in str(err.value)
+
+
+def test_a_noise_profile_without_the_vehicles_noise_is_refused_naming_the_key(paper_motor, tmp_path) -> None:
+    profile = load_profile("flight_vehicle")
+    table = sources.read(FLIGHT)
+    with pytest.raises(ConfigError) as err:
+        diagnose(table, paper_motor, profile)
+    assert "noise.1.speed_rad_s" in str(err.value) and "fit" in str(err.value)
+    noise = {m: BandNoise(8.0, 0.4, 20.0, 0.5) for m in range(1, 6)}  # motor 6 missing
+    with pytest.raises(ConfigError, match=r"noise\.6\.speed_rad_s"):
+        StreamingDiagnoser(paper_motor, profile, range(1, 7), noise)
+    # and the command line says so in one line, exit code 2, nothing written
+    out = tmp_path / "out"
+    assert main(["replay", str(FLIGHT), "--profile", "flight_vehicle", "--out", str(out)]) == 2
+    assert not (out / "diagnosis.csv").exists()
+
+
+def test_the_bands_are_in_units_of_each_motors_noise(paper_motor) -> None:
+    table = sources.read(FLIGHT)
+    profile = load_profile("flight_vehicle")
+    noise = {m: BandNoise(6.0 + m, 0.3, 20.0, 0.6) for m in range(1, 7)}
+    result = diagnose(table, paper_motor, profile, noise)
+    # twice the noise in half as many units: the same bands, the same diagnosis
+    doubled = {
+        m: BandNoise(2 * n.speed_rad_s, 2 * n.current_a, 2 * n.speed_rad_s_per_v, 1.2)
+        for m, n in noise.items()
+    }
+    halved = dataclasses.replace(profile, noise_bands=profile.noise_bands / 2)
+    again = diagnose(table, paper_motor, halved, doubled)
+    np.testing.assert_array_equal(again["state"], result["state"])
+    np.testing.assert_array_equal(again["announced"], result["announced"])
+    # each motor's band is its own noise times noise_bands, at its own activity
+    for m in (1, 4):
+        sel = result["motor"] == m
+        want = profile.noise_bands * noise[m].sigmas(result["input_activity_v"][sel])[0]
+        np.testing.assert_allclose(result["speed_band_rad_s"][sel], want)
+    # the stall of motor 1 is named with these bands too
+    assert (result["announced"][result["motor"] == 1] != 0).any()
+    # a noise ten times smaller turns healthy motors' ordinary deviations into faults: the bands bite
+    tiny = {m: BandNoise(0.1 * n.speed_rad_s, 0.03, 2.0, 0.06) for m, n in noise.items()}
+    strict = diagnose(table, paper_motor, profile, tiny)
+    healthy = (strict["motor"] != 1) & strict["steady"]
+    assert np.mean(strict["state"][healthy] != 0) > np.mean(result["state"][healthy] != 0) + 0.2
