@@ -13,6 +13,7 @@ from mav_motor_health.cli import main
 from mav_motor_health.config import dump_vehicle_params, load_motor_params, load_profile, load_vehicle_params
 from mav_motor_health.diagnosis.noise import BandNoise, band_noise_of, measure_band_noise
 from mav_motor_health.diagnosis.pipeline import StreamingDiagnoser, diagnose
+from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.errors import ConfigError
 from mav_motor_health.model.vehicle import VehicleParams
 from mav_motor_health.telemetry import sources
@@ -135,3 +136,36 @@ def test_the_bands_are_in_units_of_each_motors_noise(paper_motor) -> None:
     strict = diagnose(table, paper_motor, profile, tiny)
     healthy = (strict["motor"] != 1) & strict["steady"]
     assert np.mean(strict["state"][healthy] != 0) > np.mean(result["state"][healthy] != 0) + 0.2
+
+
+def test_a_vehicle_at_three_times_the_voltage_with_a_motor_wound_for_it_is_judged_alike(paper_motor) -> None:
+    """The same flight on a bus three times the voltage, its motor wound with three times the turns (k_e
+    ×3, R ×9: the same speeds and torques at a third of the current): the rule's volts scale with the bus
+    (``steady.bus_ref_v``), the bands with each motor's noise, so every sample is judged and named alike."""
+    table = sources.read(FLIGHT)
+    scaled_cols = dict(table.columns)
+    for name in ("voltage_v", "bus_voltage_v"):
+        scaled_cols[name] = 3.0 * np.asarray(table[name], dtype=float)
+    for name in ("current_a", "esc_current_a"):
+        scaled_cols[name] = np.asarray(table[name], dtype=float) / 3.0
+    scaled = TelemetryTable(scaled_cols, source=table.source, meta=table.meta)
+    wound = paper_motor.replace(k_e=3.0 * paper_motor.k_e, R_ohm=9.0 * paper_motor.R_ohm)
+    profile = load_profile("flight_vehicle")
+    noise = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=3.8) for m in range(1, 7)}
+    # σ per volt of activity: the activity is 3 times the volts, the current noise a third of the amperes
+    noise_wound = {
+        m: BandNoise(8.0, 0.4 / 3, 20.0 / 3, 0.5 / 9, current_typical_a=3.8 / 3) for m in range(1, 7)
+    }
+    a = diagnose(table, paper_motor, profile, noise)
+    b = diagnose(scaled, wound, profile, noise_wound)
+    np.testing.assert_array_equal(b["steady"], a["steady"])
+    np.testing.assert_array_equal(b["state"], a["state"])
+    np.testing.assert_array_equal(b["announced"], a["announced"])
+    assert a["steady"].mean() > 0.5 and (a["announced"] != 0).any()
+    # the stall is named by the split in the motor's own amperes: the same fault on both
+    stalled = a["announced"][a["motor"] == 1]
+    assert set(np.unique(stalled)) - {0} == {MotorState.F4_2}
+    # without the scaling, the rule's steps and its low-pass's lengthening are volts of a 3S bus
+    fixed = dataclasses.replace(profile, steady=dataclasses.replace(profile.steady, bus_ref_v=0.0))
+    c = diagnose(scaled, wound, fixed, noise_wound)
+    assert not np.array_equal(c["steady"], a["steady"])

@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from .diagnosis.detection import SequentialRule
 from .diagnosis.noise import NOISE_KEYS
 from .diagnosis.plausibility import PlausibilityRule
 from .diagnosis.profile import PersistenceRule, SteadyRule, ThresholdProfile
@@ -247,6 +248,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
     pers = top.table("persistence")
     plaus = top.table("plausibility")
     vehicle = top.table("vehicle_check")
+    detection = top.table("detection")
     top.raw("source")
     top.done()
     band = _number_rows(
@@ -287,6 +289,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
             activity_band=activity_band or (),
             noise_bands=p.number("noise_bands", 0.0, minimum=0.0, maximum=50.0),
+            stall_split_typical=p.number("stall_split_typical", 0.0, minimum=0.0, maximum=100.0),
             steady=SteadyRule(
                 step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
                 settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
@@ -314,6 +317,13 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
                 min_span_s=vehicle.number("min_span_s", 2.0, minimum=0.0, unit="s"),
                 min_motors=int(vehicle.number("min_motors", 3, minimum=2)),
             ),
+            detection=SequentialRule(
+                false_alarms_per_100h=detection.number("false_alarms_per_100h", 0.0, minimum=0.0),
+                reference_sigmas=detection.number("reference_sigmas", 2.0, unit="sigma"),
+                observation_tau_s=detection.number(
+                    "observation_tau_s", steady.number("residual_tau_s", 0.15) or 0.15, unit="s"
+                ),
+            ),
             persistence=PersistenceRule(
                 default_announce_s=pers.number("default_announce_s", 0.1, minimum=0.0, unit="s"),
                 clear_s=pers.number("clear_s", 0.5, minimum=0.0, unit="s"),
@@ -327,7 +337,13 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
         if exc.path is not None:
             raise
         key = exc.key
-        if key and key.split(".")[0] not in ("steady", "persistence", "plausibility", "vehicle_check"):
+        if key and key.split(".")[0] not in (
+            "steady",
+            "persistence",
+            "plausibility",
+            "vehicle_check",
+            "detection",
+        ):
             key = f"profile.{key}"
         raise ConfigError(exc.reason, path=path, key=key, expected=exc.expected) from None
     p.done()
@@ -335,6 +351,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
     pers.done()
     plaus.done()
     vehicle.done()
+    detection.done()
     return profile
 
 
@@ -363,6 +380,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         lines.append(f"activity_band = [{rows}]")
     if profile.noise_bands:
         lines.append(f"noise_bands = {profile.noise_bands!r}")
+    if profile.stall_split_typical:
+        lines.append(f"stall_split_typical = {profile.stall_split_typical!r}")
     lines += [
         "",
         "[steady]",
@@ -406,6 +425,15 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"min_span_s = {check.min_span_s!r}",
         f"min_motors = {check.min_motors!r}",
     ]
+    if profile.detection.on:
+        d = profile.detection
+        lines += [
+            "",
+            "[detection]",
+            f"false_alarms_per_100h = {d.false_alarms_per_100h!r}",
+            f"reference_sigmas = {d.reference_sigmas!r}",
+            f"observation_tau_s = {d.observation_tau_s!r}",
+        ]
     lines += ["", "[plausibility]"]
     lines += [f"{name} = {value!r}" for name, value in profile.plausibility.__dict__.items()]
     if source:

@@ -44,6 +44,7 @@ NOISE_KEYS = {
     "current_a": "A",
     "current_a_per_v": "A per V of input activity",
     "band_samples": "judged samples",
+    "current_typical_a": "A",
 }
 #: the share of |deviation| below the measured tail, and where a Gaussian's lies (in σ)
 TAIL_SHARE = 0.99
@@ -66,6 +67,8 @@ class BandNoise:
     speed_rad_s_per_v: float = 0.0
     current_a_per_v: float = 0.0
     band_samples: int = 0
+    #: the motor's median current on the judged samples [A]: its size, which the stall split scales with
+    current_typical_a: float = math.nan
 
     def sigmas(self, activity_v: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """σ of the speed [rad/s] and current [A] deviations at each input activity [V]."""
@@ -84,6 +87,7 @@ class BandNoise:
             "current_a": self.current_a,
             "current_a_per_v": self.current_a_per_v,
             "band_samples": float(self.band_samples),
+            "current_typical_a": self.current_typical_a,
         }
 
     @classmethod
@@ -98,6 +102,7 @@ class BandNoise:
             speed_rad_s_per_v=float(values.get("speed_rad_s_per_v", 0.0)),
             current_a_per_v=float(values.get("current_a_per_v", 0.0)),
             band_samples=int(values.get("band_samples", 0)),
+            current_typical_a=float(values.get("current_typical_a", math.nan)),
         )
 
 
@@ -143,6 +148,7 @@ def measure_band_noise(
         judged &= column("throttle") >= min_command
     dw = column("omega_judged_rad_s") - column("omega_model_rad_s")
     di = column("current_judged_a") - column("current_model_a")
+    current = column("current_a")
     activity = np.nan_to_num(column("input_activity_v"))
     judged &= np.isfinite(dw)
     current_ok = judged & np.isfinite(di) & ((column("sensor_flags", np.int64) & CURRENT_UNTRUSTED) == 0)
@@ -150,10 +156,11 @@ def measure_band_noise(
 
     def noise_of(speed_rows: NDArray[np.bool_], current_rows: NDArray[np.bool_]) -> BandNoise:
         s0, sc = _fit_growth(activity[speed_rows], dw[speed_rows])
-        c0, cc = math.nan, 0.0
+        c0, cc, typical = math.nan, 0.0, math.nan
         if np.count_nonzero(current_rows) >= MIN_MOTOR_SAMPLES:
             c0, cc = _fit_growth(activity[current_rows], di[current_rows])
-        return BandNoise(s0, c0, sc, cc, int(np.count_nonzero(speed_rows)))
+            typical = float(np.nanmedian(current[current_rows]))
+        return BandNoise(s0, c0, sc, cc, int(np.count_nonzero(speed_rows)), typical)
 
     if np.count_nonzero(judged) < MIN_MOTOR_SAMPLES:
         return {}

@@ -23,6 +23,7 @@ from ..model.equations import SteadyState, current_from_speed, steady_state
 from ..model.params import MotorParams
 from ..model.predict import predict_steady
 from ..telemetry.table import TelemetryTable
+from .detection import DIRECTIONS, SequentialCarry, direction_evidence, sequential_alarms
 from .noise import BandNoise, require_noise
 from .pairing import PairingCarry, pairing_error_rows
 from .persistence import PersistenceCarry, announce
@@ -85,6 +86,7 @@ class MotorCarry:
     slow_omega: ResponseCarry = field(default_factory=ResponseCarry)
     slow_current: ResponseCarry = field(default_factory=ResponseCarry)
     pairing: PairingCarry = field(default_factory=PairingCarry)
+    sequential: SequentialCarry = field(default_factory=SequentialCarry)
 
 
 @dataclass(frozen=True)
@@ -367,6 +369,7 @@ def diagnose_motors(
         # physical cap does not bound, so it keeps the full band.
         omega_free_rad_s=None if rule.kind == "balance" else v / params.k_e,
         bands=(speed_band, current_band, current_band_below),
+        stall_split_a=_stall_split(profile, noise, bus_voltage_v, t.shape),
     )
     if slow is not None and profile.slow_band_fraction > 0:
         # Where the tree sees nothing, a small lasting departure may still show in the longer averages:
@@ -396,13 +399,19 @@ def diagnose_motors(
     max_depth = persistence.max_depth
     rate = np.minimum(depth, max_depth) if max_depth > 1 else None
     hold_s, hold_per_activity_s = persistence.hold_s(), persistence.hold_per_activity_s()
+    # the fault directions are the sequential test's (detection.py) where the profile has one;
+    # persistence keeps the rest (stalls, sensor faults)
+    sequential = profile.detection.on and rule.kind == "balance"
+    persisted = state
+    if sequential:
+        persisted = np.where(np.isin(state, DIRECTIONS), MotorState.NORMAL, state).astype(state.dtype)
     announced = np.zeros(t.shape, dtype=np.int8)
     persistence_carries = []
     for r, (carry, count) in enumerate(zip(carries, counts)):
         announced[r, :count], persistence_carry = announce(
             hold_s,
             t[r, :count],
-            state[r, :count],
+            persisted[r, :count],
             eligible[r, :count],
             carry.persistence,
             persistence.max_gap_s,
@@ -411,6 +420,32 @@ def diagnose_motors(
             rate=None if rate is None else rate[r, :count],
         )
         persistence_carries.append(persistence_carry)
+    detection_level = np.full(t.shape, np.nan)
+    sequential_carries = [c.sequential for c in carries]
+    if sequential:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            evidence = direction_evidence(
+                (omega_seen - omega_pred) / (np.asarray(speed_band, dtype=float) / profile.noise_bands),
+                (current_seen - current_pred) / (current_band / profile.noise_bands),
+                current_trusted,
+                profile.noise_bands,
+            )
+        # judged: the steady samples the tree named a motor state on (not a stall, a bad sensor, no data)
+        judged = steady & ~np.isin(state, _NOT_DIRECTIONS)
+        observation_s = 2.0 * bal.tau_s
+        for r, count in enumerate(counts):
+            found, detection_level[r, :count], sequential_carries[r] = sequential_alarms(
+                profile.detection,
+                t[r, :count],
+                evidence[:, r, :count],
+                observation_s[r, :count],
+                judged[r, :count],
+                carries[r].sequential,
+                persistence.max_gap_s,
+            )
+            # a stall, a bad sensor (persistence) come before a direction
+            mine = announced[r, :count]
+            announced[r, :count] = np.where(mine == MotorState.NORMAL, found, mine)
     columns: dict[str, NDArray] = {
         "state": state,
         "announced": announced,
@@ -429,6 +464,7 @@ def diagnose_motors(
         "current_slow_judged_a": np.full(t.shape, np.nan) if slow is None else current_pred + slow[1],
         "slow_ready": np.zeros(t.shape, dtype=bool) if slow is None else slow[2],
         "pairing_error_rad_s": pairing_error,
+        "detection_level": detection_level,
     }
     new_carries = [
         MotorCarry(
@@ -443,6 +479,7 @@ def diagnose_motors(
             slow_omega=slow_carries[r],
             slow_current=slow_carries[rows + r],
             pairing=pairing_carries[r],
+            sequential=sequential_carries[r],
         )
         for r in range(rows)
     ]
@@ -468,6 +505,16 @@ _RESULT_COLUMNS = (
     "current_slow_judged_a",
     "slow_ready",
     "pairing_error_rad_s",
+    "detection_level",
+)
+
+#: states the sequential test does not judge (persistence announces them)
+_NOT_DIRECTIONS = (
+    MotorState.F2_1,
+    MotorState.F4_2,
+    MotorState.STALLED,
+    MotorState.SENSOR_FAULT,
+    MotorState.NO_DATA,
 )
 
 
@@ -481,6 +528,24 @@ def _bus_scale(
     bus = np.broadcast_to(np.asarray(bus_voltage_v, dtype=float), shape)
     with np.errstate(invalid="ignore"):
         return np.where(np.isfinite(bus) & (bus > 0), bus / rule.bus_ref_v, 1.0)
+
+
+def _stall_split(
+    profile: ThresholdProfile,
+    noise: Sequence[BandNoise] | None,
+    bus_voltage_v: NDArray[np.float64] | None,
+    shape: tuple[int, ...],
+) -> NDArray[np.float64] | None:
+    """The F2.1/F4.2 split of each row where the profile scales it with the motor's typical current and
+    the motor's noise has one; None: the profile's split everywhere."""
+    if not (profile.stall_split_typical > 0 and noise):
+        return None
+    typical = np.array([n.current_typical_a for n in noise], dtype=float)
+    if not np.isfinite(typical).any():
+        return None
+    fallback = np.broadcast_to(np.asarray(profile.stall_split(bus_voltage_v), dtype=float), shape)
+    own = profile.stall_split_typical * typical[:, None]
+    return np.where(np.isfinite(own), own, fallback)
 
 
 def _noise_bands(
@@ -601,6 +666,7 @@ def diagnose(
         "current_slow_judged_a": np.full(n, np.nan),
         "slow_ready": np.zeros(n, dtype=bool),
         "pairing_error_rad_s": np.full(n, np.nan),
+        "detection_level": np.full(n, np.nan),
     }
     motors = ordered["motor"]
     pairing = table.meta.get("pairing_s")
@@ -689,6 +755,7 @@ def diagnose(
         current_slow_judged_a=out["current_slow_judged_a"],
         slow_ready=out["slow_ready"],
         pairing_error_rad_s=out["pairing_error_rad_s"],
+        detection_level=out["detection_level"],
         vehicle_fit=vehicle_fit,
     )
     for name in ordered.names:

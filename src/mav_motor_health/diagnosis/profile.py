@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConfigError
+from .detection import SequentialRule
 from .plausibility import PlausibilityRule
 from .states import MotorState
 from .vehicle_check import VehicleCheckRule
@@ -181,6 +182,9 @@ class ThresholdProfile:
     ``noise_bands`` (n > 0, or 0): the bands are n times each motor's own noise σ(a), measured by
     identification on the vehicle's healthy flight (:mod:`.noise`); ``speed_band_rad_s``,
     ``current_band_a`` and ``activity_band`` are then not used. 0, the default: the absolute bands.
+    ``stall_split_typical`` (> 0, with ``noise_bands``): the F2.1/F4.2 split of a stalled motor's current
+    is this multiple of the motor's typical current in flight (measured with the noise), instead of
+    ``stall_split_a``: a stalled motor's current scales with the motor's size, not with the paper's.
     """
 
     name: str
@@ -198,10 +202,12 @@ class ThresholdProfile:
     min_command: float = 0.0
     activity_band: tuple[tuple[float, ...], ...] = ()
     noise_bands: float = 0.0
+    stall_split_typical: float = 0.0
     steady: SteadyRule = field(default_factory=SteadyRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
     vehicle_check: VehicleCheckRule = field(default_factory=VehicleCheckRule)
+    detection: SequentialRule = field(default_factory=SequentialRule)
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -252,6 +258,18 @@ class ThresholdProfile:
                 f"{self.noise_bands!r}",
                 key="noise_bands",
                 expected="a number of the vehicle's noise units between 1 and 50, or 0 (absolute bands)",
+            )
+        if self.detection.on and not (self.noise_bands > 0 and self.steady.kind == "balance"):
+            raise ConfigError(
+                f"false_alarms_per_100h = {self.detection.false_alarms_per_100h!r}",
+                key="detection",
+                expected='the sequential test needs bands in noise units (noise_bands > 0) and kind = "balance"',
+            )
+        if not self.stall_split_typical >= 0:
+            raise ConfigError(
+                f"{self.stall_split_typical!r}",
+                key="stall_split_typical",
+                expected="a multiple >= 0 of the motor's typical current (0: stall_split_a)",
             )
         if not 0 <= self.slow_band_fraction <= 1:
             raise ConfigError(

@@ -144,11 +144,14 @@ def classify_depth(
     omega_free_rad_s: ArrayLike | None = None,
     activity_v: ArrayLike | None = None,
     bands: tuple[NDArray[np.float64] | float, NDArray[np.float64], NDArray[np.float64]] | None = None,
+    stall_split_a: ArrayLike | None = None,
 ) -> tuple[NDArray[np.int8], NDArray[np.float64]]:
     """:func:`classify`, and how deep in its state each sample is (see "Depth"): state codes, depths.
 
     ``bands`` (speed, current above the model, current below it) are the profile's bands at these samples
-    if the caller has them already (the pipeline, which also reports them); None: computed here."""
+    if the caller has them already (the pipeline, which also reports them); None: computed here.
+    ``stall_split_a``: the F2.1/F4.2 split at each sample where the caller knows the motor's own (its
+    typical current, :mod:`.noise`); None: the profile's."""
     w, w_model, i, i_model, v = np.broadcast_arrays(
         *(
             np.asarray(x, dtype=float)
@@ -162,7 +165,12 @@ def classify_depth(
         band_i_low = profile.current_halfwidth_a(v, activity, below=True)
     else:
         band_w, band_i, band_i_low = bands
-    split = np.broadcast_to(profile.stall_split(bus_voltage_v), w.shape)
+    split = np.broadcast_to(
+        profile.stall_split(bus_voltage_v)
+        if stall_split_a is None
+        else np.asarray(stall_split_a, dtype=float),
+        w.shape,
+    )
 
     speed_low = w < w_model - band_w
     band_up: NDArray[np.float64] | float = band_w

@@ -1,0 +1,277 @@
+"""Sequential change detection with a designed false-alarm rate (issue 17, item 2).
+
+A hold ("announce F1.1 after it has lasted 0.45 s") is a number tuned in one world: how long a healthy
+motor's deviation may stay outside a band depends on the vehicle, the air and the telemetry. Here the
+decision is a CUSUM test per fault direction on the deviations measured in units of the motor's own
+noise (:mod:`.noise`), and its threshold follows from the false-alarm rate the user asks for.
+
+**Evidence.** The judged deviations of speed and current (:mod:`..model.balance`), divided by the motor's
+σ at the sample's input activity, are ``z_ω`` and ``z_i``. Each fault moves them its own way, as the
+paper's tree reads them: F1.1 (friction) more current with the speed not above the model; F4.1 (open
+transistor) slower or less current, neither above; F3.1 (lighter propeller) faster with less current;
+UNKNOWN faster with the current not below. Without a trusted current, SLOW and FAST are the speed alone.
+The evidence for a direction is how far the sample lies that way, in σ (0 where it lies another way).
+
+**Test.** For each direction, ``S ← max(0, S + (y − k)·Δt/τ_obs)``: ``y`` the evidence, ``k`` the
+reference (``reference_sigmas``: departures below it are not evidence), ``τ_obs = 2·τ`` with ``τ`` the
+deviations' low-pass time constant at the sample (a low-passed signal gives one independent observation
+per 2τ, so S counts observations, not samples). The direction is announced when S reaches ``h`` and
+stays announced until S has fallen back to 0.
+
+**Threshold.** Under no fault ``z_ω`` and ``z_i`` are taken as independent standard normal (σ is measured
+on the tail of the healthy flight, which makes that hold where it matters), so each direction's evidence
+is at most the larger of two half-normals: ``P(y ≤ x) = Φ(x)²``. Brook and Evans' Markov chain gives the
+average number of observations to a false alarm, ``ARL₀(h)``; ``h`` is the smallest with
+
+    directions × motors × (3600 / τ_obs) / ARL₀(h)  ≤  false alarms per hour asked for
+
+(:func:`design_threshold`; 4 directions, 8 motors, τ_obs of the shortest low-pass: conservative for a
+hexacopter, and in gusts, where the low-pass lengthens, there are fewer observations per hour). The
+time to detect a departure of δ σ is then about ``h/(δ − k)`` observations: a deep fault is announced in
+a fraction of τ, a shallow one after seconds. The rate is a design figure under that noise model; what a
+vehicle really gives is measured by ``benchmarks/bench_flight_worlds.py``.
+
+Stalls, sensor faults and NO_DATA keep :mod:`.persistence` (a motor below the stop speed is a physical
+fact, not a statistical one) and take precedence over the directions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.special import ndtr
+
+from ..errors import ConfigError
+from .states import MotorState
+
+__all__ = [
+    "DIRECTIONS",
+    "SequentialCarry",
+    "SequentialRule",
+    "average_run_length",
+    "design_threshold",
+    "direction_evidence",
+    "sequential_alarms",
+]
+
+#: the directions tested, in the order of the evidence rows (:func:`direction_evidence`)
+DIRECTIONS = (
+    MotorState.F1_1,
+    MotorState.F4_1,
+    MotorState.F3_1,
+    MotorState.UNKNOWN,
+    MotorState.SLOW,
+    MotorState.FAST,
+)
+#: directions open at once to a motor with a trusted current (F1.1, F4.1, F3.1, UNKNOWN), or without
+DIRECTIONS_AT_ONCE = 4
+#: motors the designed rate covers (an octocopter; fewer motors: fewer false alarms)
+DESIGN_MOTORS = 8
+#: cells of the Markov chain that approximates the CUSUM (Brook and Evans)
+_CELLS = 240
+
+
+@dataclass(frozen=True)
+class SequentialRule:
+    """The sequential test of a profile (``[detection]`` in TOML); ``false_alarms_per_100h`` 0: off.
+
+    ``false_alarms_per_100h``: false fault announcements per 100 flight hours of the whole vehicle that
+    the threshold is designed for (default 1, the issue's goal). ``reference_sigmas``: the reference k
+    of the CUSUM in σ (a departure must exceed it to count). ``observation_tau_s``: the shortest
+    low-pass time constant (the profile's ``steady.residual_tau_s``), which sets the observations per
+    hour of the design.
+    """
+
+    false_alarms_per_100h: float = 0.0
+    reference_sigmas: float = 2.0
+    observation_tau_s: float = 0.15
+
+    def __post_init__(self) -> None:
+        if not (self.false_alarms_per_100h == 0 or 1e-6 <= self.false_alarms_per_100h <= 1e6):
+            raise ConfigError(
+                f"{self.false_alarms_per_100h!r}",
+                key="detection.false_alarms_per_100h",
+                expected="a rate between 1e-6 and 1e6 false alarms per 100 flight hours, or 0 (off)",
+            )
+        if not 0 < self.reference_sigmas <= 10:
+            raise ConfigError(
+                f"{self.reference_sigmas!r}", key="detection.reference_sigmas", expected="0 < k <= 10 (sigma)"
+            )
+        if not self.observation_tau_s > 0:
+            raise ConfigError(
+                f"{self.observation_tau_s!r}", key="detection.observation_tau_s", expected="a time > 0 s"
+            )
+
+    @property
+    def on(self) -> bool:
+        return self.false_alarms_per_100h > 0
+
+    def threshold(self) -> float:
+        """The CUSUM threshold h [σ·observations] this rule's rate asks for."""
+        return design_threshold(
+            self.false_alarms_per_100h / 100.0, self.reference_sigmas, 2.0 * self.observation_tau_s
+        )
+
+
+@dataclass(frozen=True)
+class SequentialCarry:
+    """Each direction's CUSUM, whether it is announced, and the last judged sample's time."""
+
+    sums: tuple[float, ...] = (0.0,) * len(DIRECTIONS)
+    alarmed: tuple[bool, ...] = (False,) * len(DIRECTIONS)
+    last_s: float = -math.inf
+
+
+def _max_of_two_half_normals(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """P(y ≤ x) of the evidence under no fault: the larger of two independent standard normals, floored
+    at 0 (the atom at 0 is P(both ≤ 0) = 1/4)."""
+    return np.where(x < 0, 0.0, ndtr(x) ** 2)
+
+
+def average_run_length(h: float, k: float, cells: int = _CELLS) -> float:
+    """Observations to a false alarm of ``S ← max(0, S + y − k)``, alarm at ``S ≥ h``, started at 0, with
+    y distributed as :func:`_max_of_two_half_normals` (Brook and Evans' Markov chain: ``cells`` states of
+    S in [0, h), each at its cell's middle, state 0 the atom at S = 0)."""
+    w = h / cells
+    s = np.concatenate([[0.0], (np.arange(1, cells) + 0.5) * w])  # state 0: S = 0 exactly
+    upper = np.arange(1, cells + 1) * w  # cell j holds S' in [j·w, (j+1)·w)
+    # P(S' = 0) = P(y ≤ k − s); P(S' in cell j) = F(k − s + (j+1)w) − F(k − s + jw) for j ≥ 1
+    cdf = _max_of_two_half_normals(k - s[:, None] + np.concatenate([[0.0], upper])[None, :])
+    q = np.empty((cells, cells))
+    q[:, 0] = _max_of_two_half_normals(k - s + w)  # to S' < w: the atom and the first cell's bottom
+    q[:, 1:] = np.diff(cdf[:, 1:], axis=1)
+    arl = np.linalg.solve(np.eye(cells) - q, np.ones(cells))
+    return float(arl[0])
+
+
+@lru_cache(maxsize=64)
+def design_threshold(false_alarms_per_hour: float, k: float, observation_s: float) -> float:
+    """The smallest h whose false-alarm rate, over :data:`DIRECTIONS_AT_ONCE` directions of
+    :data:`DESIGN_MOTORS` motors observed every ``observation_s``, is at most ``false_alarms_per_hour``."""
+    tests = DIRECTIONS_AT_ONCE * DESIGN_MOTORS
+    needed = tests * (3600.0 / observation_s) / false_alarms_per_hour  # observations per false alarm
+    low, high = 0.0, 1.0
+    while average_run_length(high, k) < needed:
+        low, high = high, 2.0 * high
+        if high > 1e4:
+            raise ValueError("no CUSUM threshold reaches that rate")
+    for _ in range(50):
+        mid = 0.5 * (low + high)
+        if average_run_length(mid, k) < needed:
+            low = mid
+        else:
+            high = mid
+    return high
+
+
+def direction_evidence(
+    z_omega: NDArray[np.float64],
+    z_current: NDArray[np.float64],
+    current_trusted: NDArray[np.bool_],
+    bands_sigmas: float,
+) -> NDArray[np.float64]:
+    """Each sample's evidence for each of :data:`DIRECTIONS` (first axis), in σ, ≥ 0.
+
+    ``z_omega``, ``z_current``: the deviations in σ; ``bands_sigmas``: the tree's band in σ (its "above
+    the band" and "below the band" gate the directions as the tree does). Without a trusted current, only
+    SLOW and FAST have evidence; with one, only the four others."""
+    zw = np.nan_to_num(z_omega)
+    zi = np.where(current_trusted, np.nan_to_num(z_current), 0.0)
+    n = bands_sigmas
+    not_high = zw <= n
+    out = np.zeros((len(DIRECTIONS), *zw.shape))
+    out[0] = np.where(not_high, np.maximum(zi, 0.0), 0.0)  # F1.1: more current, not faster
+    out[1] = np.where(not_high & (zi <= n), np.maximum(np.maximum(-zw, -zi), 0.0), 0.0)  # F4.1
+    out[2] = np.maximum(np.minimum(zw, -zi), 0.0)  # F3.1: faster with less current
+    out[3] = np.where(zi >= -n, np.maximum(zw, 0.0), 0.0)  # UNKNOWN: faster, current not below
+    out[:4] = np.where(current_trusted, out[:4], 0.0)
+    out[4] = np.where(current_trusted, 0.0, np.maximum(-zw, 0.0))  # SLOW (speed only)
+    out[5] = np.where(current_trusted, 0.0, np.maximum(zw, 0.0))  # FAST (speed only)
+    return out
+
+
+def sequential_alarms(
+    rule: SequentialRule,
+    time_s: NDArray[np.float64],
+    evidence: NDArray[np.float64],
+    observation_s: NDArray[np.float64],
+    judged: NDArray[np.bool_],
+    carry: SequentialCarry,
+    max_gap_s: float,
+) -> tuple[NDArray[np.int8], NDArray[np.float64], SequentialCarry]:
+    """One motor's CUSUMs over its samples: the announced direction at each (NORMAL where none), the
+    largest statistic over h at each, and the new carry.
+
+    ``evidence`` (directions × samples, :func:`direction_evidence`); ``observation_s`` the time of one
+    independent observation at each sample (2τ); only ``judged`` samples add to the sums, and two judged
+    samples more than ``max_gap_s`` apart start them afresh (the evidence before the gap is stale). The
+    sums are exact Lindley recursions, evaluated in closed form (S_n = W_n − min(−S_0, min_j W_j) over
+    each stretch without a gap), so any split of the samples into calls gives the same result."""
+    h = rule.threshold()
+    k = rule.reference_sigmas
+    t = np.asarray(time_s, dtype=float)
+    n = t.size
+    directions = len(DIRECTIONS)
+    announced = np.zeros(n, dtype=np.int8)
+    level = np.zeros(n)
+    if n == 0:
+        return announced, level, carry
+    idx = np.flatnonzero(judged)
+    sums = np.array(carry.sums, dtype=float)
+    alarmed = np.array(carry.alarmed, dtype=bool)
+    last_s = carry.last_s
+    # the state at each sample: that of the last judged sample at or before it (the carry's before any)
+    s_at = np.tile(sums[:, None], (1, n))
+    a_at = np.tile(alarmed[:, None], (1, n))
+    if idx.size:
+        tj = t[idx]
+        dt = np.diff(tj, prepend=last_s)
+        fresh = ~(dt <= max_gap_s)  # a gap (or the first sample ever): the sums start afresh
+        dt = np.where(fresh, 0.0, dt)
+        steps = (evidence[:, idx] - k) * (dt / np.asarray(observation_s, dtype=float)[idx])
+        starts = np.flatnonzero(fresh)
+        bounds = (
+            [0, *starts.tolist(), idx.size] if (starts.size == 0 or starts[0] != 0) else [*starts, idx.size]
+        )
+        s_j = np.empty((directions, idx.size))
+        a_j = np.empty((directions, idx.size), dtype=bool)
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            if hi <= lo:
+                continue
+            start_sum = np.zeros(directions) if fresh[lo] else sums
+            start_alarm = np.zeros(directions, dtype=bool) if fresh[lo] else alarmed
+            w = np.cumsum(steps[:, lo:hi], axis=1)
+            lowest = np.minimum(np.minimum.accumulate(w, axis=1), -start_sum[:, None])
+            seg = w - lowest
+            s_j[:, lo:hi] = seg
+            a_j[:, lo:hi] = _latched(seg, h, start_alarm)
+            sums, alarmed = seg[:, -1].copy(), a_j[:, hi - 1].copy()
+        last_s = float(tj[-1])
+        # carry the judged samples' states forward to the samples after them
+        pos = np.maximum.accumulate(np.where(judged, np.arange(n), -1))
+        where = np.searchsorted(idx, pos)
+        have = pos >= 0
+        s_at[:, have] = s_j[:, where[have]]
+        a_at[:, have] = a_j[:, where[have]]
+    ratio = np.where(a_at, s_at / h, 0.0)
+    strongest = np.argmax(ratio, axis=0)
+    any_alarm = a_at.any(axis=0)
+    codes = np.array([int(d) for d in DIRECTIONS], dtype=np.int8)
+    announced = np.where(any_alarm, codes[strongest], MotorState.NORMAL).astype(np.int8)
+    level = (s_at / h).max(axis=0)
+    new = SequentialCarry(
+        sums=tuple(float(x) for x in sums), alarmed=tuple(bool(x) for x in alarmed), last_s=last_s
+    )
+    return announced, level, new
+
+
+def _latched(sums: NDArray[np.float64], h: float, start: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Alarm at each sample: S reached h since it was last 0 (``start``: an alarm carried in)."""
+    pos = np.arange(sums.shape[1])
+    last_zero = np.maximum.accumulate(np.where(sums <= 0.0, pos, -1), axis=1)
+    last_cross = np.maximum.accumulate(np.where(sums >= h, pos, -1), axis=1)
+    return (last_cross > last_zero) | (start[:, None] & (last_zero < 0))

@@ -1,0 +1,150 @@
+"""The sequential test (issue 17, item 2; diagnosis/detection.py): a CUSUM per fault direction on the
+deviations in noise units, its threshold designed from a false-alarm rate."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from mav_motor_health.config import dump_profile, load_profile
+from mav_motor_health.diagnosis.detection import (
+    DIRECTIONS,
+    SequentialCarry,
+    SequentialRule,
+    average_run_length,
+    design_threshold,
+    direction_evidence,
+    sequential_alarms,
+)
+from mav_motor_health.diagnosis.states import MotorState
+from mav_motor_health.errors import ConfigError
+
+DT_S, TAU_S = 0.02, 0.15
+
+
+def healthy_noise(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Speed and current deviations of a healthy motor in σ: white noise through the rule's low-pass."""
+    a = np.exp(-DT_S / TAU_S)
+    z = lfilter([1 - a], [1, -a], rng.standard_normal((2, n)), axis=1)
+    return z / z.std(axis=1, keepdims=True)
+
+
+def run(rule: SequentialRule, z: np.ndarray, carry: SequentialCarry | None = None, start: int = 0):
+    n = z.shape[1]
+    evidence = direction_evidence(z[0], z[1], np.ones(n, dtype=bool), 4.5)
+    return sequential_alarms(
+        rule,
+        (start + np.arange(n)) * DT_S,
+        evidence,
+        np.full(n, 2 * TAU_S),
+        np.ones(n, dtype=bool),
+        carry or SequentialCarry(),
+        0.5,
+    )
+
+
+def test_the_threshold_grows_as_the_asked_rate_falls_and_the_chain_has_converged() -> None:
+    rates = [1.0, 0.1, 0.01, 0.001]
+    h = [design_threshold(r, 2.5, 0.3) for r in rates]
+    assert all(a < b for a, b in zip(h, h[1:]))
+    # the designed h gives (at least) the observations per false alarm asked for, a little less h does not
+    needed = 4 * 8 * (3600 / 0.3) / 0.01
+    assert average_run_length(h[2], 2.5) >= needed > average_run_length(0.97 * h[2], 2.5)
+    # the Markov chain's answer does not hang on its resolution
+    assert average_run_length(h[2], 2.5, 480) == pytest.approx(average_run_length(h[2], 2.5), rel=0.02)
+
+
+def test_healthy_noise_raises_no_more_false_alarms_than_designed() -> None:
+    """Ten hours of two healthy motors' low-passed Gaussian deviations at a rate asked high enough to be
+    measured: the test stays within its design (conservatively: the low-passed signal is smoother than
+    the independent observations the design counts), and not absurdly far below it."""
+    rng = np.random.default_rng(170)
+    rule = SequentialRule(false_alarms_per_100h=1e5, reference_sigmas=2.5, observation_tau_s=TAU_S)
+    hours, motors = 10.0, 2
+    alarms = 0
+    for _ in range(motors):
+        announced, _, _ = run(rule, healthy_noise(rng, int(hours * 3600 / DT_S)))
+        alarms += int(np.sum((announced[1:] != 0) & (announced[:-1] == 0)))
+    designed_per_motor_hour = 1e5 / 100 / 8
+    measured = alarms / (motors * hours)
+    assert 0.01 * designed_per_motor_hour < measured <= designed_per_motor_hour
+
+
+@pytest.mark.parametrize(
+    ("shift", "direction"),
+    [
+        ((0.0, 6.0), MotorState.F1_1),  # more current: friction
+        ((-6.0, -6.0), MotorState.F4_1),  # slower and less current: an open transistor
+        ((6.0, -6.0), MotorState.F3_1),  # faster with less current: a lighter propeller
+    ],
+)
+def test_a_lasting_departure_is_named_in_its_direction_about_when_the_design_says(shift, direction) -> None:
+    rng = np.random.default_rng(3)
+    rule = SequentialRule(false_alarms_per_100h=1.0, reference_sigmas=2.5, observation_tau_s=TAU_S)
+    n, onset = 3000, 1500
+    z = healthy_noise(rng, n)
+    z[:, onset:] += np.array(shift)[:, None]
+    announced, _, _ = run(rule, z)
+    assert not announced[:onset].any()
+    named = np.flatnonzero(announced != 0)
+    assert named.size and named[0] >= onset and announced[named[0]] == direction
+    # h/(δ − k) observations of 2τ each, δ the evidence in σ (the deviation itself: the step is instant)
+    delay = (named[0] - onset) * DT_S
+    expected = rule.threshold() / (6.0 - rule.reference_sigmas) * 2 * TAU_S
+    assert 0.3 * expected <= delay <= 3.0 * expected
+    assert (announced[named[0] :] == direction).mean() > 0.95
+    # a departure that ends is cleared once its evidence has run out: S falls by k per observation, so
+    # an announcement lasts about as long again as the departure, times (δ − k)/k
+    z = healthy_noise(rng, n)
+    z[:, onset : onset + 200] += np.array(shift)[:, None]
+    brief, _, _ = run(rule, z)
+    assert (brief[onset : onset + 200] == direction).any()
+    after = brief[onset + 200 + 3 * 200 :]  # (6 − 2.5)/2.5 = 1.4 times the 200 samples, and some
+    assert after.size >= 500 and not after.any()
+
+
+def test_any_split_into_calls_gives_the_same_alarms() -> None:
+    rng = np.random.default_rng(11)
+    rule = SequentialRule(false_alarms_per_100h=1e5, reference_sigmas=2.0, observation_tau_s=TAU_S)
+    z = healthy_noise(rng, 20000)
+    z[:, 8000:9000] += 3.0
+    whole, whole_level, _ = run(rule, z)
+    cuts = np.sort(rng.choice(np.arange(1, z.shape[1]), 60, replace=False))
+    carry, parts, levels = SequentialCarry(), [], []
+    for lo, hi in zip([0, *cuts], [*cuts, z.shape[1]]):
+        got, lvl, carry = run(rule, z[:, lo:hi], carry, start=lo)
+        parts.append(got)
+        levels.append(lvl)
+    np.testing.assert_array_equal(np.concatenate(parts), whole)
+    np.testing.assert_allclose(np.concatenate(levels), whole_level, rtol=1e-9, atol=1e-9)
+    assert (whole != 0).any()
+
+
+def test_without_a_trusted_current_only_the_speed_directions_have_evidence() -> None:
+    z = np.array([[-5.0, 5.0], [3.0, 3.0]])
+    trusted = direction_evidence(z[0], z[1], np.array([True, True]), 4.5)
+    alone = direction_evidence(z[0], z[1], np.array([False, False]), 4.5)
+    slow, fast = DIRECTIONS.index(MotorState.SLOW), DIRECTIONS.index(MotorState.FAST)
+    assert trusted[[slow, fast]].sum() == 0 and trusted.sum() > 0
+    assert alone[slow, 0] == 5.0 and alone[fast, 1] == 5.0
+    assert alone.sum() == 10.0
+
+
+def test_the_profile_carries_the_test_and_refuses_it_without_noise_bands(tmp_path) -> None:
+    profile = load_profile("flight_vehicle")
+    assert profile.detection.on and profile.detection.false_alarms_per_100h == 1.0
+    path = tmp_path / "again.toml"
+    path.write_text(dump_profile(profile), encoding="utf-8")
+    assert load_profile(path) == profile
+    with pytest.raises(ConfigError, match="noise_bands"):
+        dataclasses.replace(profile, noise_bands=0.0)
+    bad = tmp_path / "bad.toml"
+    bad.write_text(
+        dump_profile(profile).replace("false_alarms_per_100h = 1.0", "false_alarms_per_100h = -1.0")
+    )
+    with pytest.raises(ConfigError) as err:
+        load_profile(bad)
+    assert "detection.false_alarms_per_100h" in str(err.value) and str(bad) in str(err.value)
