@@ -169,3 +169,23 @@ def test_a_vehicle_at_three_times_the_voltage_with_a_motor_wound_for_it_is_judge
     fixed = dataclasses.replace(profile, steady=dataclasses.replace(profile.steady, bus_ref_v=0.0))
     c = diagnose(scaled, wound, fixed, noise_wound)
     assert not np.array_equal(c["steady"], a["steady"])
+
+
+def test_beyond_the_speeds_identification_covered_nothing_is_judged_but_a_stall_is_named(paper_motor) -> None:
+    table = sources.read(FLIGHT)
+    profile = load_profile("flight_vehicle")
+    assert profile.range_margin == pytest.approx(0.1)
+    wide = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=3.8) for m in range(1, 7)}
+    everywhere = diagnose(table, paper_motor, profile, wide)
+    model = everywhere["omega_model_rad_s"][everywhere["steady"]]
+    low, high = np.quantile(model, [0.4, 0.6])  # a flight that covered only the middle fifth of them
+    narrow = {m: dataclasses.replace(n, omega_low_rad_s=low, omega_high_rad_s=high) for m, n in wide.items()}
+    guarded = diagnose(table, paper_motor, profile, narrow)
+    w = guarded["omega_model_rad_s"]
+    outside = (w < 0.9 * low) | (w > 1.1 * high)
+    assert outside[everywhere["steady"]].mean() > 0.1
+    assert not guarded["steady"][outside].any()
+    np.testing.assert_array_equal(guarded["steady"][~outside], everywhere["steady"][~outside])
+    # motor 1's stall (at 30 s) is still named: a motor below the stop speed needs no model
+    stalled = guarded["announced"][(guarded["motor"] == 1) & (guarded["time_s"] > 31.0)]
+    assert (stalled == MotorState.F4_2).mean() > 0.9

@@ -290,6 +290,7 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             activity_band=activity_band or (),
             noise_bands=p.number("noise_bands", 0.0, minimum=0.0, maximum=50.0),
             stall_split_typical=p.number("stall_split_typical", 0.0, minimum=0.0, maximum=100.0),
+            range_margin=p.number("range_margin", 0.0, minimum=0.0, maximum=10.0),
             steady=SteadyRule(
                 step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
                 settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
@@ -382,6 +383,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         lines.append(f"noise_bands = {profile.noise_bands!r}")
     if profile.stall_split_typical:
         lines.append(f"stall_split_typical = {profile.stall_split_typical!r}")
+    if profile.range_margin:
+        lines.append(f"range_margin = {profile.range_margin!r}")
     lines += [
         "",
         "[steady]",

@@ -45,7 +45,11 @@ NOISE_KEYS = {
     "current_a_per_v": "A per V of input activity",
     "band_samples": "judged samples",
     "current_typical_a": "A",
+    "omega_low_rad_s": "rad/s",
+    "omega_high_rad_s": "rad/s",
 }
+#: the identified speed range: these shares of the judged samples' model speeds lie inside it
+RANGE_SHARES = (0.01, 0.99)
 #: the share of |deviation| below the measured tail, and where a Gaussian's lies (in σ)
 TAIL_SHARE = 0.99
 TAIL_SIGMAS = 2.5758293035489
@@ -69,6 +73,10 @@ class BandNoise:
     band_samples: int = 0
     #: the motor's median current on the judged samples [A]: its size, which the stall split scales with
     current_typical_a: float = math.nan
+    #: the model speeds the healthy flight covered (1st and 99th percentile of the judged samples'): where
+    #: the model was checked against this vehicle; NaN: not known
+    omega_low_rad_s: float = math.nan
+    omega_high_rad_s: float = math.nan
 
     def sigmas(self, activity_v: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """σ of the speed [rad/s] and current [A] deviations at each input activity [V]."""
@@ -88,6 +96,8 @@ class BandNoise:
             "current_a_per_v": self.current_a_per_v,
             "band_samples": float(self.band_samples),
             "current_typical_a": self.current_typical_a,
+            "omega_low_rad_s": self.omega_low_rad_s,
+            "omega_high_rad_s": self.omega_high_rad_s,
         }
 
     @classmethod
@@ -103,7 +113,17 @@ class BandNoise:
             current_a_per_v=float(values.get("current_a_per_v", 0.0)),
             band_samples=int(values.get("band_samples", 0)),
             current_typical_a=float(values.get("current_typical_a", math.nan)),
+            omega_low_rad_s=float(values.get("omega_low_rad_s", math.nan)),
+            omega_high_rad_s=float(values.get("omega_high_rad_s", math.nan)),
         )
+
+    def known(self, omega_model_rad_s: ArrayLike, margin: float) -> NDArray[np.bool_]:
+        """Where the model speed lies in the range the healthy flight covered, widened by ``margin`` (a
+        share of the range's ends); everywhere where the range is not known."""
+        w = np.asarray(omega_model_rad_s, dtype=float)
+        if not (math.isfinite(self.omega_low_rad_s) and math.isfinite(self.omega_high_rad_s)):
+            return np.ones(w.shape, dtype=bool)
+        return (w >= (1.0 - margin) * self.omega_low_rad_s) & (w <= (1.0 + margin) * self.omega_high_rad_s)
 
 
 def _tail_sigma(deviation: NDArray[np.float64]) -> float:
@@ -149,6 +169,7 @@ def measure_band_noise(
     dw = column("omega_judged_rad_s") - column("omega_model_rad_s")
     di = column("current_judged_a") - column("current_model_a")
     current = column("current_a")
+    omega_model = column("omega_model_rad_s")
     activity = np.nan_to_num(column("input_activity_v"))
     judged &= np.isfinite(dw)
     current_ok = judged & np.isfinite(di) & ((column("sensor_flags", np.int64) & CURRENT_UNTRUSTED) == 0)
@@ -160,7 +181,8 @@ def measure_band_noise(
         if np.count_nonzero(current_rows) >= MIN_MOTOR_SAMPLES:
             c0, cc = _fit_growth(activity[current_rows], di[current_rows])
             typical = float(np.nanmedian(current[current_rows]))
-        return BandNoise(s0, c0, sc, cc, int(np.count_nonzero(speed_rows)), typical)
+        low, high = np.nanquantile(omega_model[speed_rows], RANGE_SHARES)
+        return BandNoise(s0, c0, sc, cc, int(np.count_nonzero(speed_rows)), typical, float(low), float(high))
 
     if np.count_nonzero(judged) < MIN_MOTOR_SAMPLES:
         return {}

@@ -185,6 +185,9 @@ class ThresholdProfile:
     ``stall_split_typical`` (> 0, with ``noise_bands``): the F2.1/F4.2 split of a stalled motor's current
     is this multiple of the motor's typical current in flight (measured with the noise), instead of
     ``stall_split_a``: a stalled motor's current scales with the motor's size, not with the paper's.
+    ``range_margin`` (> 0, with ``noise_bands``): samples whose model speed lies beyond the speeds the
+    identification flight covered, by more than this share of the range's ends, are not judged (the model
+    was never checked there; stalls are still named). 0: judged everywhere.
     """
 
     name: str
@@ -203,6 +206,7 @@ class ThresholdProfile:
     activity_band: tuple[tuple[float, ...], ...] = ()
     noise_bands: float = 0.0
     stall_split_typical: float = 0.0
+    range_margin: float = 0.0
     steady: SteadyRule = field(default_factory=SteadyRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
@@ -264,6 +268,12 @@ class ThresholdProfile:
                 f"false_alarms_per_100h = {self.detection.false_alarms_per_100h!r}",
                 key="detection",
                 expected='the sequential test needs bands in noise units (noise_bands > 0) and kind = "balance"',
+            )
+        if not 0 <= self.range_margin <= 10:
+            raise ConfigError(
+                f"{self.range_margin!r}",
+                key="range_margin",
+                expected="a share 0..10 of the identified speed range's ends (0: judged everywhere)",
             )
         if not self.stall_split_typical >= 0:
             raise ConfigError(
