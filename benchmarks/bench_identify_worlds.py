@@ -35,11 +35,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
+from mav_motor_health.evaluation.worlds import write_identification_log  # noqa: E402
 from mav_motor_health.identification import identify_logs  # noqa: E402
-from mav_motor_health.sim.engine import run_scenario  # noqa: E402
-from mav_motor_health.sim.scenario import world_scenario  # noqa: E402
 from mav_motor_health.sim.worlds import draw_world  # noqa: E402
-from mav_motor_health.sim.writers import write_record  # noqa: E402
 
 BOUNDS = {"k_e": 0.03, "R_ohm": 0.15, "J_kg_m2": 0.30, "idle_offset": 0.01}
 
@@ -81,9 +79,9 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
 
     with tempfile.TemporaryDirectory(prefix="mmh-world-") as tmp:
         path = Path(tmp) / f"world{seed}.{fmt}"
+        write_identification_log(seed, path, duration_s)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            write_record(run_scenario(world_scenario(seed, duration_s=duration_s)), path)
             try:
                 found = identify_logs([path]).found
             except Exception as exc:  # a benchmark reports every world, a failure too

@@ -12,6 +12,7 @@ ESC turns it into the duty the motor sees through its idle offset; :attr:`Simula
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -109,6 +110,8 @@ class Simulation:
                     "a world is a flying vehicle", key="scenario.world", expected="mode = 'flight'"
                 )
             self.world = draw_world(scenario.world)
+            if scenario.world_turbulence is not None:  # the same world in other air
+                self.world = dataclasses.replace(self.world, turbulence=scenario.world_turbulence)
             self.fault_scale = self.world.fault_scale()
             scenario = self.world.apply(scenario)
         self.scenario = sc = scenario

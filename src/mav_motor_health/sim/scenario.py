@@ -127,6 +127,16 @@ class Scenario:
     source: str = ""
     #: seed of a randomised world (:func:`.worlds.draw_world`); None: ``motor`` and ``flight`` as given
     world: int | None = None
+    #: fly the world at this turbulence level instead of its own (None: the world's)
+    world_turbulence: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.world_turbulence is not None and self.world_turbulence not in TURBULENCE:
+            raise ConfigError(
+                f"{self.world_turbulence!r}",
+                key="scenario.world_turbulence",
+                expected=f"one of {sorted(TURBULENCE)}",
+            )
 
     @property
     def n_motors(self) -> int:

@@ -1,0 +1,171 @@
+"""Leave-worlds-out evaluation (evaluation/worlds.py, benchmarks/bench_flight_worlds.py): its bookkeeping,
+not the diagnosis's figures. Short flights of a few worlds; everything seeded."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mav_motor_health.errors import ConfigError
+from mav_motor_health.evaluation.campaign import FAULTS, TURBULENCE_LEVELS
+from mav_motor_health.evaluation.worlds import (
+    ONSET_SHARE,
+    WorldEvaluation,
+    evaluate_world,
+    fly_world,
+    percentile,
+    summarise,
+    world_flights,
+)
+from mav_motor_health.sim.engine import run_scenario
+from mav_motor_health.sim.scenario import world_scenario
+from mav_motor_health.sim.worlds import draw_world
+
+REPO = Path(__file__).resolve().parents[1]
+#: a world identification accepts from a 40-s flight (1.8 kg, KV 608, its own air moderate)
+KNOWN = 1001
+#: a world identification refuses (16.5 kg, KV 53: "no propeller load found"; docs/model.md)
+REFUSED = 1014
+
+
+def _columns(record):
+    return record.esc_columns()
+
+
+def test_a_world_flown_at_its_own_turbulence_is_the_simulators_own_flight():
+    assert draw_world(KNOWN).turbulence == "moderate"
+    own = _columns(run_scenario(world_scenario(KNOWN, duration_s=6.0)))
+    for turbulence in (None, "moderate"):  # the level set after construction is the one it had
+        flown = _columns(fly_world(KNOWN, duration_s=6.0, turbulence=turbulence))
+        assert flown.keys() == own.keys()
+        for name in own:
+            np.testing.assert_array_equal(flown[name], own[name], err_msg=name)
+
+
+def test_a_world_flown_at_another_turbulence_says_so_and_flies_otherwise():
+    own = fly_world(KNOWN, duration_s=6.0)
+    calm = fly_world(KNOWN, duration_s=6.0, turbulence="calm")
+    assert calm.scenario.truth()["turbulence"] == "calm"
+    assert calm.world is not None and calm.world.turbulence == "calm"
+    assert own.scenario.truth()["turbulence"] == "moderate"
+    # the same noise seed, the same plan, calmer air: the commands move less
+    spread = [np.std(np.diff(_columns(r)["throttle"][_columns(r)["motor"] == 1])) for r in (calm, own)]
+    assert spread[0] < spread[1]
+    with pytest.raises(ConfigError, match="turbulence"):
+        fly_world(KNOWN, duration_s=1.0, turbulence="stormy")
+
+
+def test_the_test_flights_are_drawn_from_the_world_seed_and_never_fly_its_own_noise():
+    flights = world_flights(1000, duration_s=150.0, healthy_flights=2)
+    assert flights == world_flights(1000, duration_s=150.0, healthy_flights=2)
+    assert len(flights) == len(TURBULENCE_LEVELS) * (len(FAULTS) + 2)
+    seeds = [f.seed for f in flights]
+    assert len(set(seeds)) == len(seeds) and 1000 not in seeds
+    for level in TURBULENCE_LEVELS:
+        mine = [f for f in flights if f.turbulence == level]
+        assert [f.fault for f in mine] == [*FAULTS, None, None]
+    for f in flights:
+        if f.fault is None:
+            assert f.motor is None and f.onset_s is None and f.faults() == ()
+        else:
+            assert f.motor in range(1, 7)
+            assert ONSET_SHARE[0] * 150.0 <= f.onset_s <= ONSET_SHARE[1] * 150.0
+            (spec,) = f.faults()
+            assert (spec.kind, spec.motor, spec.onset_s) == (f.fault, f.motor, f.onset_s)
+    # another world, other draws; a subset keeps the full set's motors, onsets and seeds
+    assert [f.seed for f in world_flights(1001)] != [f.seed for f in world_flights(1000)]
+    subset = world_flights(1000, duration_s=150.0, healthy_flights=2, levels=("gusty",), faults=("F4.1",))
+    assert subset == [f for f in flights if f.turbulence == "gusty" and f.fault in ("F4.1", None)]
+
+
+@pytest.fixture(scope="module")
+def small_evaluation() -> WorldEvaluation:
+    return _small()
+
+
+def _small() -> WorldEvaluation:
+    return evaluate_world(
+        KNOWN,
+        duration_s=20.0,
+        identification_s=40.0,
+        healthy_flights=1,
+        levels=("calm",),
+        faults=("F3.1", "F4.2"),
+    )
+
+
+def test_each_flight_is_scored_against_what_its_scenario_injected(small_evaluation):
+    e = small_evaluation
+    assert e.evaluated and not e.refused and "k_e_error" in e.identified
+    assert [(r.flight.turbulence, r.flight.fault) for r in e.flights] == [
+        ("calm", "F3.1"),
+        ("calm", "F4.2"),
+        ("calm", None),
+    ]
+    for r in e.flights:
+        f, s = r.flight, r.score
+        if f.fault is None:
+            assert r.truth_fault is None and s.fault is None and s.fault_accuracy_pct is None
+            assert r.healthy_samples == s.samples  # every sample of a healthy flight is healthy
+        else:
+            # the log's truth sidecar names the fault, motor and onset the flight asked for
+            assert r.truth_fault == {"fault": f.fault, "motor": f.motor, "onset_s": f.onset_s}
+            assert (s.fault, s.motor, s.onset_s) == (f.fault, f.motor, f.onset_s)
+            assert 0 < r.healthy_samples < s.samples
+            assert e.accuracy("calm", f.fault) == s.fault_accuracy_pct
+            assert e.detection("calm", f.fault) == (math.inf if s.detection_s is None else s.detection_s)
+        # the pooled counts agree with score.py's own share of healthy judged samples NORMAL
+        assert r.healthy_normal <= r.healthy_judged <= r.healthy_samples
+        if r.healthy_judged:
+            assert 100.0 * r.healthy_normal / r.healthy_judged == pytest.approx(s.normal_accuracy_pct)
+        assert s.hours == pytest.approx(20.0 / 3600.0)
+    assert e.healthy_hours("calm") == pytest.approx(20.0 / 3600.0)  # the healthy flight only
+    assert e.healthy_hours("gusty") == 0.0 and e.accuracy("gusty", "F3.1") is None
+    assert e.false_events("calm") == e.flights[-1].score.false_events
+
+
+def test_the_same_seeds_give_the_same_numbers(small_evaluation):
+    again = _small()
+    assert again.identified == small_evaluation.identified
+    assert again.flights == small_evaluation.flights
+
+
+def test_a_world_identification_refuses_is_reported_and_counted_apart(small_evaluation):
+    refused = evaluate_world(REFUSED, identification_s=40.0, levels=("calm",), faults=("F1.1",))
+    assert not refused.evaluated and refused.flights == ()
+    assert "propeller load" in refused.refused
+    summary = summarise([small_evaluation, refused], levels=("calm",), faults=("F3.1", "F4.2"))
+    assert (summary.worlds, summary.evaluated, summary.refused) == (2, 1, (REFUSED,))
+    # the medians are the evaluated world's own figures, not diluted by the refused one
+    assert summary.accuracy["calm", "F3.1"][0] == pytest.approx(
+        small_evaluation.accuracy("calm", "F3.1") or 0.0
+    )
+    assert summary.healthy_hours["calm"] == pytest.approx(20.0 / 3600.0)
+
+
+def test_the_benchmark_prints_a_refused_world_as_refused(capsys):
+    spec = importlib.util.spec_from_file_location(
+        "bench_flight_worlds", REPO / "benchmarks/bench_flight_worlds.py"
+    )
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    argv = ["--first", str(REFUSED), "--count", "1", "--identification-s", "40", "--duration-s", "5"]
+    assert bench.main(argv) == 0
+    out = capsys.readouterr().out
+    assert f"world {REFUSED} (" in out and "REFUSED by identification" in out
+    assert "Over 0 worlds evaluated (1 refused by identification: 1014; 1 drawn)" in out
+
+
+def test_percentiles_count_a_fault_never_announced_as_the_worst():
+    values = [0.2, 0.4, 0.3, 0.1]
+    for q in (10.0, 50.0, 90.0):
+        assert percentile(values, q) == pytest.approx(float(np.percentile(values, q)))
+    assert percentile([0.2, math.inf, 0.3], 50.0) == 0.3
+    assert percentile([0.2, math.inf, 0.3], 90.0) == math.inf
+    assert percentile([0.2, math.inf, math.inf], 50.0) == math.inf
+    assert math.isnan(percentile([], 50.0))
