@@ -184,8 +184,19 @@ def test_beyond_the_speeds_identification_covered_nothing_is_judged_but_a_stall_
     w = guarded["omega_model_rad_s"]
     outside = (w < 0.9 * low) | (w > 1.1 * high)
     assert outside[everywhere["steady"]].mean() > 0.1
-    assert not guarded["steady"][outside].any()
+    stall = np.isin(guarded["state"], (MotorState.F2_1, MotorState.F4_2, MotorState.STALLED))
+    assert not guarded["steady"][outside & ~stall].any()  # a stall is judged anywhere: it needs no model
     np.testing.assert_array_equal(guarded["steady"][~outside], everywhere["steady"][~outside])
     # motor 1's stall (at 30 s) is still named: a motor below the stop speed needs no model
     stalled = guarded["announced"][(guarded["motor"] == 1) & (guarded["time_s"] > 31.0)]
+    assert (stalled == MotorState.F4_2).mean() > 0.9
+
+
+def test_a_stall_is_named_however_wide_the_vehicles_noise_band(paper_motor) -> None:
+    """A motor expected at twice the stop speed is turning, whatever the speed band: a noisy vehicle's
+    wide band (here ±900 rad/s, beyond any speed the motor turns at) must not hide a stopped rotor (tree rule 1)."""
+    table = sources.read(FLIGHT)
+    noisy = {m: BandNoise(200.0, 0.4, 0.0, 0.0, current_typical_a=3.8) for m in range(1, 7)}
+    result = diagnose(table, paper_motor, load_profile("flight_vehicle"), noisy)
+    stalled = result["announced"][(result["motor"] == 1) & (result["time_s"] > 31.0)]
     assert (stalled == MotorState.F4_2).mean() > 0.9

@@ -392,7 +392,7 @@ def diagnose_motors(
     if profile.range_margin > 0 and noise is not None and profile.noise_bands > 0:
         # beyond the speeds identification checked the model at: not judged (a stall still is, below)
         known = np.stack([n.known(omega_pred[r], profile.range_margin) for r, n in enumerate(noise)])
-        steady = steady & known
+        steady = steady & (known | np.isin(state, _TRANSIENT_OK))
     eligible = (steady | np.isin(state, _TRANSIENT_OK)) & (state != MotorState.NO_DATA)
     if command is not None and profile.min_command > 0:
         idle = np.asarray(command, dtype=float) < profile.min_command  # idle and spin-up: not judged

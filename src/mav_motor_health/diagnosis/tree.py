@@ -193,7 +193,11 @@ def classify_depth(
     # Rule 1 needs the model to expect a turning motor: an idle or disarmed motor is not a stalled one.
     expected = w_model if omega_expected_rad_s is None else np.broadcast_to(omega_expected_rad_s, w.shape)
     stop = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * expected)
-    stopped = (np.abs(w) < stop) & (expected >= profile.stop_speed_rad_s + band_w)
+    # (the band's margin at most the stop speed itself: a vehicle's noise band may be wide in gusts, and a
+    # motor expected at twice the stop speed is turning by any measure)
+    stopped = (np.abs(w) < stop) & (
+        expected >= profile.stop_speed_rad_s + np.minimum(band_w, profile.stop_speed_rad_s)
+    )
 
     state = np.full(w.shape, MotorState.UNKNOWN, dtype=np.int8)
     not_high = ~speed_high
