@@ -18,6 +18,7 @@ from mav_motor_health.config import (
     load_vehicle_params,
 )
 from mav_motor_health.diagnosis.pipeline import diagnose
+from mav_motor_health.diagnosis.plausibility import SensorIssue
 from mav_motor_health.errors import ConfigError
 from mav_motor_health.identification import identify_logs, join_flights
 from mav_motor_health.model.identify import CurrentReading, EscMap
@@ -220,3 +221,34 @@ def test_the_real_px4_quad_identified_from_its_own_log_replays_without_a_fault(
         )
         events = (out / "events.jsonl").read_text(encoding="utf-8")
         assert '"F' not in events and "STALL" not in events and "UNCALIBRATED" not in events, events[:500]
+
+
+def test_the_esc_sum_is_checked_against_the_battery_only_as_identification_related_them() -> None:
+    """The ESC-sum plausibility check compares the ESCs' summed current with the battery monitor. On a
+    vehicle whose identification found the rest of its draw (an offset) the check subtracts it; where
+    identification could not relate the two (the gain assumed), the check has nothing to compare and
+    must not set every current aside (it did: worlds' currents went to the speed-only path)."""
+    table = sources.read(CALM)
+    esc = table["esc_current_a"]
+    columns = dict(table.columns)
+    # the six ESCs' mean total (the motors report at their own instants) and 12 A of avionics, payload
+    columns["battery_current_a"] = np.full(len(table), len(table.motors()) * float(np.mean(esc)) + 12.0)
+    with_battery = TelemetryTable(columns, source=table.source, meta=table.meta)
+    motor = load_motor_params()
+    profile = load_profile("flight")
+    flagged = SensorIssue.CURRENT_SUM
+
+    def share_flagged(vehicle: VehicleParams | None) -> float:
+        data = with_battery if vehicle is None else vehicle.calibrate(with_battery)
+        result = diagnose(data, motor, profile)
+        return float(np.mean((result["sensor_flags"] & flagged) != 0))
+
+    # no vehicle file: the plain check (the sum 12 A short of the battery: a mismatch)
+    assert share_flagged(None) > 0.5
+    related = CurrentReading(side="input", gain=1.0, gain_from="battery", offset_a=12.0)
+    assumed = CurrentReading(side="input", gain=1.0, gain_from="assumed")
+    esc_map = EscMap(idle_offset=0.0)
+    assert share_flagged(VehicleParams(motor=motor, esc=esc_map, current=related)) == 0.0
+    assert share_flagged(VehicleParams(motor=motor, esc=esc_map, current=assumed)) == 0.0
+    wrong = CurrentReading(side="input", gain=1.0, gain_from="battery", offset_a=0.0)
+    assert share_flagged(VehicleParams(motor=motor, esc=esc_map, current=wrong)) > 0.5
