@@ -103,29 +103,36 @@ def test_the_replay_reader_and_the_agent_see_the_same_samples(flight):
         )
 
 
-def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor, tmp_path):
-    """The ESC map and the current sensor's gain of a vehicle file: the agent calibrates each batch with
-    the same function replay calibrates the whole table with, and announces what replay announces."""
+@pytest.mark.parametrize("profile", ["flight", "flight_vehicle"])
+def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor, tmp_path, profile):
+    """The ESC map and the current sensor's gain of a vehicle file, and (flight_vehicle) each motor's noise
+    its bands are measured in and the battery offset its ESC-sum check subtracts: the agent calibrates each
+    batch with the same function replay calibrates the whole table with, and announces what replay
+    announces."""
     from mav_motor_health.config import dump_vehicle_params, load_profile, load_vehicle_params
+    from mav_motor_health.diagnosis.noise import BandNoise, band_noise_of
     from mav_motor_health.model.identify import CurrentReading, EscMap
     from mav_motor_health.model.vehicle import VehicleParams
 
     fields, path = flight
     vehicle_file = tmp_path / "vehicle.toml"
+    noise = {m: BandNoise(6.0 + m, 0.25, 20.0, 0.4, 900, 3.8, 300.0, 900.0).as_mapping() for m in range(1, 7)}
+    current = CurrentReading(side="input", gain=0.9, gain_from="battery", offset_a=0.5)
     vehicle_file.write_text(
-        dump_vehicle_params(
-            VehicleParams(motor=paper_motor, esc=EscMap(0.04), current=CurrentReading(side="input", gain=0.9))
-        ),
+        dump_vehicle_params(VehicleParams(motor=paper_motor, esc=EscMap(0.04), current=current, noise=noise)),
         encoding="utf-8",
     )
     vehicle = load_vehicle_params(vehicle_file)
     table = vehicle.calibrate(table_from_fields(fields))
-    batch = diagnose(table, vehicle.models(range(1, 7)), load_profile("flight"))
+    assert table.meta["battery_offset_a"] == 0.5
+    batch = diagnose(table, vehicle.models(range(1, 7)), load_profile(profile), band_noise_of(vehicle.noise))
     plain = diagnose(table_from_fields(fields), paper_motor, load_profile("flight"))
     assert not np.array_equal(batch["state"], plain["state"])  # the map changes what is judged
+    if profile == "flight_vehicle":
+        np.testing.assert_allclose(batch["speed_band_rad_s"][batch["motor"] == 3][:1], [4.5 * 9.0], rtol=0.01)
 
     rows: list[dict] = []
-    config = load_agent_config(None, connect=str(path), profile="flight", params=str(vehicle_file))
+    config = load_agent_config(None, connect=str(path), profile=profile, params=str(vehicle_file))
     assert config.esc == EscMap(0.04)
 
     async def main() -> None:

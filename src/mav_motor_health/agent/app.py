@@ -26,6 +26,9 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any, TextIO
 
+import numpy as np
+from numpy.typing import NDArray
+
 from .. import __version__
 from .._aio import TaskGroup
 from ..diagnosis.states import MotorState
@@ -44,7 +47,7 @@ from ..publish.mqtt import MqttPublisher, utc_now
 from .config import AgentConfig
 from .link import MavlinkLink, Received, mavlink2
 from .monitor import HealthMonitor, StateChange
-from .samples import MotorSample, SampleAssembler
+from .samples import SampleAssembler
 from .vehicle import AutopilotTracker, stream_requests, wanted_params
 
 __all__ = ["Agent", "run_agent"]
@@ -53,6 +56,8 @@ log = logging.getLogger("mav_motor_health.agent")
 
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 _TICK_S = 0.05
+#: Messages that wait, without ESC telemetry due, before they are read anyway (what they set is kept).
+_READ_AT_LATEST = 1000
 
 
 class Agent:
@@ -83,6 +88,7 @@ class Agent:
             config.stale_s,
             esc=config.esc,
             current=config.current,
+            noise=config.noise,
         )
         self.tracker = AutopilotTracker(config.heartbeat_timeout_s)
         p = config.publish
@@ -101,7 +107,12 @@ class Agent:
         self._request_streams_at = math.inf
         self._telemetry_sent: dict[int, float] = {}
         self._esc_lost_told = False
-        self._pending: list[MotorSample] = []
+        # ESC telemetry on its way to the core: messages not read yet (the time of the first, of the last)
+        # and samples read, waiting for their batch to complete (the time of the first)
+        self._waiting_since: float | None = None
+        self._waiting_last = -math.inf
+        self._pending: list[dict[str, NDArray[Any]]] = []
+        self._pending_since: float | None = None
         self._vehicle_fit_told = self.monitor.vehicle_fit
         self._mqtt_refused_told = False
 
@@ -177,9 +188,11 @@ class Agent:
                 return
             for item in batch:
                 self.handle(item)
+            if self._due(self._waiting_last) or self.assembler.waiting >= _READ_AT_LATEST:
+                self.read()
 
     def handle(self, item: Received) -> None:
-        """Everything one message does (the agent's feeding path)."""
+        """Everything one message does on arrival; its samples come with :meth:`read`."""
         msg, t = item.msg, item.time_s
         self._last_time_s = max(self._last_time_s, t)
         event = self.tracker.on_message(msg, t)
@@ -189,19 +202,56 @@ class Agent:
             self.tracker.system is None or msg.get_srcSystem() == self.tracker.system
         ):
             self._params_pending.pop(str(msg.param_id).rstrip("\x00"), None)
-        samples = self.assembler.feed(msg, t)
-        if samples:
-            self._last_esc_s = t
-            self._pending.extend(samples)
-            if t - self._pending[0].time_s >= self.config.batch_s:
-                self.flush()
+        if self.assembler.add(msg, t):  # ESC telemetry: samples to come
+            if self._waiting_since is None:
+                self._waiting_since = t
+            self._waiting_last = t
+
+    def _due(self, now: float) -> bool:
+        """Whether the first ESC telemetry not yet diagnosed has waited ``batch_s``."""
+        since = self._pending_since if self._pending_since is not None else self._waiting_since
+        return since is not None and now - since >= self.config.batch_s
+
+    def read(self) -> None:
+        """Read the messages waiting into samples — one call of the reading replay uses
+        (telemetry/mavlink_messages.py) for all of them — and diagnose those whose batch is complete:
+        each ESC message's samples wait at most ``batch_s`` to go through the core with those after it."""
+        samples = self.assembler.take()
+        self._waiting_since = None
+        n = len(samples["time_s"])
+        if not n:
+            return
+        self._last_esc_s = float(samples["time_s"][-1])
+        firsts = np.flatnonzero(np.diff(samples["position"], prepend=-1))  # each ESC message's first sample
+        ends = [*firsts[1:].tolist(), n]
+        start, since = 0, self._pending_since
+        for t, end in zip(samples["time_s"][firsts].tolist(), ends):
+            if since is None:
+                since = t
+            if t - since >= self.config.batch_s:  # this message's samples complete a batch
+                self._pending.append({name: values[start:end] for name, values in samples.items()})
+                self._diagnose_pending()
+                start, since = end, None
+        if start < n:
+            self._pending.append({name: values[start:] for name, values in samples.items()})
+        self._pending_since = since
 
     def flush(self) -> None:
-        """Diagnose the samples waiting (the core runs per motor on a few samples at a time)."""
+        """Read what waits and diagnose every sample (the core runs per motor on a few at a time)."""
+        self.read()
+        self._diagnose_pending()
+
+    def _diagnose_pending(self) -> None:
+        self._pending_since = None
         if not self._pending:
             return
         pending, self._pending = self._pending, []
-        rows, changes = self.monitor.feed_many(pending)
+        samples = (
+            pending[0]
+            if len(pending) == 1
+            else {name: np.concatenate([part[name] for part in pending]) for name in pending[0]}
+        )
+        rows, changes = self.monitor.feed_columns(samples)
         if self.on_row is not None:
             for row in rows:
                 self.on_row(row)
@@ -403,7 +453,7 @@ class Agent:
         while True:
             await asyncio.sleep(_TICK_S)
             mono = time.monotonic()
-            if self._pending and self.now() - self._pending[0].time_s >= self.config.batch_s:
+            if self._due(self.now()):
                 self.flush()
             if not self.tlog:
                 for change in self.monitor.check_silence(self.now()):

@@ -8,11 +8,13 @@ naming the file, the key and what was expected. Command-line options override th
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from ..config import DEFAULT_MOTOR, _Section, load_motor_params, load_profile, load_vehicle_params, read_toml
+from ..diagnosis.noise import BandNoise, band_noise_of
 from ..diagnosis.profile import ThresholdProfile
 from ..errors import ConfigError, LinkError
 from ..model.identify import CurrentReading, EscMap
@@ -50,6 +52,8 @@ class AgentConfig:
     #: the vehicle's ESC map and current reading, where the params file was written by identification
     esc: EscMap | None = None
     current: CurrentReading | None = None
+    #: each motor's noise from identification (a profile with noise_bands sets its bands from it)
+    noise: Mapping[int, BandNoise] = field(default_factory=dict)
     profile: ThresholdProfile = field(default_factory=lambda: load_profile("flight"))
     system_id: int = 0  # 0: take the autopilot's once it is found
     component_id: int = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
@@ -160,6 +164,7 @@ def load_agent_config(
         params_name=Path(params_name).stem,
         esc=vehicle.esc,
         current=vehicle.current,
+        noise=band_noise_of(vehicle.noise),
         profile=the_profile,
         system_id=system_id,
         component_id=component_id,

@@ -1,6 +1,6 @@
 """Per-motor health for the live agent: the diagnosis core fed one sample at a time, plus silence.
 
-:class:`HealthMonitor` feeds every :class:`~.samples.MotorSample` to the same
+:class:`HealthMonitor` feeds the samples (table columns from :class:`~.samples.SampleAssembler`) to the same
 :class:`~mav_motor_health.diagnosis.pipeline.StreamingDiagnoser` (so to ``diagnose_motor``) that replay
 uses in batch, and reports a :class:`StateChange` whenever the *published* state of a motor changes. The
 published state is the core's announced state, except ``NO_DATA`` while a motor has sent nothing for
@@ -11,12 +11,14 @@ callers pass times on the link's clock.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
+from ..diagnosis.noise import BandNoise
 from ..diagnosis.pipeline import MotorBatch, StreamingDiagnoser
 from ..diagnosis.plausibility import CurrentSumCheck, SensorIssue
 from ..diagnosis.profile import ThresholdProfile
@@ -24,10 +26,45 @@ from ..diagnosis.states import MotorState
 from ..diagnosis.vehicle_check import VehicleFit
 from ..model.identify import CurrentReading, EscMap
 from ..model.params import MotorParams
-from ..model.vehicle import calibrate_columns
+from ..model.vehicle import battery_offset_a, calibrate_columns
 from .samples import MotorSample
 
 __all__ = ["HealthMonitor", "MotorStatus", "StateChange"]
+
+#: The sample columns the monitor reads.
+_SAMPLE_COLUMNS = (
+    "time_s",
+    "motor",
+    "voltage_v",
+    "omega_rad_s",
+    "current_a",
+    "bus_voltage_v",
+    "throttle",
+    "esc_current_a",
+    "esc_temp_c",
+    "battery_current_a",
+)
+#: Those the core sees (its batch, and the context a model with fitted effects may read).
+_CORE_COLUMNS = (
+    "time_s",
+    "voltage_v",
+    "omega_rad_s",
+    "current_a",
+    "bus_voltage_v",
+    "throttle",
+    "esc_current_a",
+    "esc_temp_c",
+)
+#: Those a result row repeats from the sample (before the core's columns).
+_ROW_COLUMNS = (
+    "time_s",
+    "omega_rad_s",
+    "current_a",
+    "voltage_v",
+    "bus_voltage_v",
+    "throttle",
+    "esc_current_a",
+)
 
 
 @dataclass(frozen=True)
@@ -67,8 +104,9 @@ class HealthMonitor:
         stale_s: float = 1.0,
         esc: EscMap | None = None,
         current: CurrentReading | None = None,
+        noise: Mapping[int, BandNoise] | None = None,
     ) -> None:
-        self.diagnoser = StreamingDiagnoser(params, profile, range(1, motors + 1))
+        self.diagnoser = StreamingDiagnoser(params, profile, range(1, motors + 1), noise)
         # the vehicle's ESC map and current sensing (identification), applied as replay applies them
         self.esc, self.current = esc, current
         # the ESC currents' sum against the battery monitor, across motors, as replay checks it
@@ -85,50 +123,46 @@ class HealthMonitor:
         return rows[0], (changes[0] if changes else None)
 
     def feed_many(self, samples: list[MotorSample]) -> tuple[list[dict[str, Any]], list[StateChange]]:
-        """Diagnose samples (each motor's in time order) in one core call for all motors: same results as
-        one by one (the core carries each motor's state), a fraction of the overhead. Returns rows and
-        changes."""
-        by_motor: dict[int, list[MotorSample]] = {}
-        sum_flags: dict[int, list[int]] = {}
-        for sample in samples:
-            if sample.motor not in self.status:
-                raise KeyError(f"motor {sample.motor} is not one of 1..{len(self.status)}")
-        esc_current: Any = [s.esc_current_a for s in samples]
+        """:meth:`feed_columns` for samples as objects (in time order)."""
+        return self.feed_columns(
+            {name: np.array([getattr(s, name) for s in samples]) for name in _SAMPLE_COLUMNS}
+        )
+
+    def feed_columns(
+        self, columns: Mapping[str, ArrayLike]
+    ) -> tuple[list[dict[str, Any]], list[StateChange]]:
+        """Diagnose samples given as table columns (``time_s``, ``motor``, ... as
+        :class:`~.samples.SampleAssembler` gives them; rows in time order) in one core call for all
+        motors: same results as one by one (the core carries each motor's state), a fraction of the
+        overhead. Returns rows and changes."""
+        motor = np.asarray(columns["motor"], dtype=np.int64)
+        if motor.size == 0:
+            return [], []
+        cols = {name: np.asarray(columns[name], dtype=float) for name in _SAMPLE_COLUMNS if name != "motor"}
+        motors = list(dict.fromkeys(motor.tolist()))  # in the order they first come
+        for number in motors:
+            if number not in self.status:
+                raise KeyError(f"motor {number} is not one of 1..{len(self.status)}")
+        esc_current = cols["esc_current_a"]
         if self.esc is not None:  # the sum check adds true currents, as replay's calibrated table does
             esc_current = calibrate_columns(
-                {
-                    name: np.array([getattr(s, name) for s in samples], dtype=float)
-                    for name in ("throttle", "bus_voltage_v", "esc_current_a")
-                },
+                {name: cols[name] for name in ("throttle", "bus_voltage_v", "esc_current_a")},
                 self.esc,
                 self.current,
             )["esc_current_a"]
-        mismatch = self.current_sum.update(
-            [s.time_s for s in samples],
-            [s.motor for s in samples],
-            esc_current,
-            [s.battery_current_a for s in samples],
-        )
-        for sample, bad in zip(samples, mismatch.tolist()):
-            by_motor.setdefault(sample.motor, []).append(sample)
-            sum_flags.setdefault(sample.motor, []).append(int(SensorIssue.CURRENT_SUM) if bad else 0)
+        offset = battery_offset_a(self.current) if self.esc is not None else 0.0
+        if offset is None:  # this vehicle's ESCs and battery monitor are not related: nothing to check
+            sum_flags = np.zeros(motor.size, dtype=np.int16)
+        else:
+            battery = cols["battery_current_a"] - offset
+            mismatch = self.current_sum.update(cols["time_s"], motor, esc_current, battery)
+            sum_flags = np.where(mismatch, int(SensorIssue.CURRENT_SUM), 0).astype(np.int16)
+        groups = {number: np.flatnonzero(motor == number) for number in motors}
         batches: dict[int, MotorBatch] = {}
-        for motor, group in by_motor.items():
-            arrays = {
-                name: np.array([getattr(s, name) for s in group], dtype=float)
-                for name in (
-                    "time_s",
-                    "voltage_v",
-                    "omega_rad_s",
-                    "current_a",
-                    "bus_voltage_v",
-                    "throttle",
-                    "esc_current_a",
-                    "esc_temp_c",
-                )
-            }
+        for number, index in groups.items():
+            arrays = {name: cols[name][index] for name in _CORE_COLUMNS}
             arrays = calibrate_columns(arrays, self.esc, self.current)
-            batches[motor] = MotorBatch(
+            batches[number] = MotorBatch(
                 arrays["time_s"],
                 arrays["voltage_v"],
                 arrays["omega_rad_s"],
@@ -136,56 +170,48 @@ class HealthMonitor:
                 arrays["bus_voltage_v"],
                 command=arrays["throttle"],
                 sensor_current_a=arrays["esc_current_a"],
-                extra_flags=np.array(sum_flags[motor], dtype=np.int16),
+                extra_flags=sum_flags[index],
                 context=arrays,  # what a model with fitted effects may read (temperatures, throttle...)
             )
         # every motor's samples in one core call (the same results as motor by motor)
         results: dict[int, dict[str, NDArray]] = self.diagnoser.update_motors(batches)
-        # the vehicle check across motors, in arrival order, as replay runs it over the whole log
-        position = {motor: 0 for motor in by_motor}
-        index = []
-        for sample in samples:
-            index.append(position[sample.motor])
-            position[sample.motor] += 1
+        # the vehicle check across motors, in the rows' order, as replay runs it over the whole log
+        omega_model = np.empty(motor.size)
+        announced = np.empty(motor.size, dtype=results[motors[0]]["announced"].dtype)
+        for number, index in groups.items():
+            omega_model[index] = results[number]["omega_model_rad_s"]
+            announced[index] = results[number]["announced"]
         verdict, announced = self.diagnoser.judge_vehicle(
-            np.array([s.time_s for s in samples]),
-            np.array([s.motor for s in samples]),
-            np.array([s.omega_rad_s for s in samples], dtype=float),
-            np.array([results[s.motor]["omega_model_rad_s"][k] for s, k in zip(samples, index)]),
-            np.array([results[s.motor]["announced"][k] for s, k in zip(samples, index)]),
+            cols["time_s"], motor, cols["omega_rad_s"], omega_model, announced
         )
-        for (sample, k), fit, state in zip(zip(samples, index), verdict.tolist(), announced.tolist()):
-            results[sample.motor]["announced"][k] = state
-            results[sample.motor].setdefault("vehicle_fit", np.zeros(position[sample.motor], dtype=np.int8))[
-                k
-            ] = fit
+        for number, index in groups.items():
+            result = results[number]
+            result["announced"][:] = announced[index]
+            fit = result.setdefault("vehicle_fit", np.zeros(index.size, dtype=np.int8))
+            fit[:] = verdict[index]
         if verdict.size:
             self.vehicle_fit = int(verdict[-1])
         rows: list[dict[str, Any]] = []
         changes: list[StateChange] = []
-        for motor, group in by_motor.items():
-            status = self.status[motor]
-            cols = {name: values.tolist() for name, values in results[motor].items()}  # Python values
-            for k, sample in enumerate(group):
+        for number, index in groups.items():
+            status = self.status[number]
+            sample = {name: cols[name][index].tolist() for name in _ROW_COLUMNS}  # Python values
+            diagnosed = {name: values.tolist() for name, values in results[number].items()}
+            for k, time_s in enumerate(sample["time_s"]):
                 row: dict[str, Any] = {
-                    "time_s": sample.time_s,
-                    "motor": motor,
-                    "omega_rad_s": sample.omega_rad_s,
-                    "current_a": sample.current_a,
-                    "voltage_v": sample.voltage_v,
-                    "bus_voltage_v": sample.bus_voltage_v,
-                    "throttle": sample.throttle,
-                    "esc_current_a": sample.esc_current_a,
-                    **{name: values[k] for name, values in cols.items()},
+                    "time_s": time_s,
+                    "motor": number,
+                    **{name: sample[name][k] for name in _ROW_COLUMNS[1:]},
+                    **{name: values[k] for name, values in diagnosed.items()},
                 }
                 rows.append(row)
                 status.row = row
-                status.last_sample_s = sample.time_s
+                status.last_sample_s = time_s
                 if row["announced"] != status.state:
-                    change = self._publish(status, MotorState(row["announced"]), sample.time_s, row)
+                    change = self._publish(status, MotorState(row["announced"]), time_s, row)
                     if change is not None:
                         changes.append(change)
-            self.samples += len(group)
+            self.samples += index.size
         changes.sort(key=lambda c: c.time_s)
         return rows, changes
 

@@ -1,5 +1,8 @@
 """What MAVLink and ArduPilot logs say about motors, in SI units: shared by the log readers and the live link.
 
+(The rules that turn MAVLink messages into motor samples, for the .tlog reader and the live agent, are
+:mod:`.mavlink_messages`; this module holds the units and mappings they and the DataFlash reader use.)
+
 * ``ESC_TELEMETRY_1_TO_4`` (11030), ``_5_TO_8`` (11031), ``_9_TO_12`` (11032) — ArduPilot dialect:
   per ESC ``temperature`` [°C], ``voltage`` [cV], ``current`` [cA], ``totalcurrent`` [mAh], ``rpm``
   [1/min, mechanical: ArduPilot divides eRPM by the pole pairs itself], ``count``.
@@ -109,7 +112,7 @@ def pwm_range(params: Mapping[str, float] | None = None) -> tuple[float, float]:
 def throttle_from_pwm(pwm_us: ArrayLike, low_us: float, high_us: float) -> NDArray[np.float64]:
     """Normalised command 0..1 from a PWM pulse width; 0 µs (output off) gives 0."""
     pwm = np.asarray(pwm_us, dtype=float)
-    return np.clip((pwm - low_us) / (high_us - low_us), 0.0, 1.0)
+    return np.minimum(np.maximum((pwm - low_us) / (high_us - low_us), 0.0), 1.0)  # np.clip, less overhead
 
 
 def esc_fields_to_si(

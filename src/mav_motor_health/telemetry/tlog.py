@@ -11,8 +11,9 @@ A ``.tlog`` is a sequence of records ``[8-byte big-endian µs UNIX time][MAVLink
 
 Messages used: ``ESC_TELEMETRY_1_TO_4``/``5_TO_8``/``9_TO_12`` (ArduPilot) or ``ESC_STATUS`` (PX4),
 ``SERVO_OUTPUT_RAW``, ``SYS_STATUS``/``BATTERY_STATUS``, ``VFR_HUD``/``GLOBAL_POSITION_INT``,
-``SCALED_PRESSURE``, ``HEARTBEAT`` and ``PARAM_VALUE``. Field scaling and motor mapping are those of
-:mod:`.mavlink_esc`. Times are the tlog's own record times, in seconds from the first record.
+``SCALED_PRESSURE``, ``HEARTBEAT`` and ``PARAM_VALUE``. The ESC, servo, battery and parameter messages
+become motor samples through :mod:`.mavlink_messages`, the reading the live agent uses, given the whole
+log's arrays at once. Times are the tlog's own record times, in seconds from the first record.
 """
 
 from __future__ import annotations
@@ -27,10 +28,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import LogFormatError
+from ..errors import DataError, LogFormatError
 from . import mavlink_esc
 from ._logscan import Damage, crc_x25_rows, follow_chain, gather_rows
 from .assemble import EscSamples, Series, motor_table, no_esc_error
+from .mavlink_messages import READ_MESSAGES, MessageReader, Messages
 from .table import TelemetryTable
 
 __all__ = ["TlogMessages", "read_messages", "read_tlog"]
@@ -263,16 +265,20 @@ def read_messages(
     return out
 
 
-def _params(msgs: TlogMessages, keep: NDArray[np.bool_] | None) -> dict[str, float]:
+def _params(msgs: TlogMessages, keep: NDArray[np.bool_] | None) -> tuple[dict[str, float], dict[str, float]]:
+    """The log's parameters: each one's first logged value and its last."""
     if "PARAM_VALUE" not in msgs:
-        return {}
+        return {}, {}
     pv = msgs["PARAM_VALUE"]
     if keep is not None:
         pv = pv[keep]
-    params: dict[str, float] = {}
+    first: dict[str, float] = {}
+    last: dict[str, float] = {}
     for name, value in zip(pv["param_id"].tolist(), pv["param_value"].tolist()):
-        params[name.split(b"\0", 1)[0].decode("ascii", "replace")] = float(value)
-    return params
+        key = name.split(b"\0", 1)[0].decode("ascii", "replace")
+        first.setdefault(key, float(value))
+        last[key] = float(value)
+    return first, last
 
 
 def read_tlog(path: str | Path) -> TelemetryTable:
@@ -281,18 +287,17 @@ def read_tlog(path: str | Path) -> TelemetryTable:
     msgs = read_messages(path)
     esc_names = [n for n in mavlink_esc.ESC_TELEMETRY_MESSAGES if n in msgs]
     if not esc_names and "ESC_STATUS" not in msgs:
-        raise no_esc_error(
-            path,
-            "MAVLink telemetry (.tlog)",
-            msgs.counts,
-            "ESC_TELEMETRY_1_TO_4/5_TO_8/9_TO_12 or ESC_STATUS",
-        )
+        raise _no_esc(path, msgs)
     # The vehicle is the system that sends ESC telemetry; other systems (ground stations) are ignored.
     senders = np.concatenate([msgs.sysid[n] for n in [*esc_names, "ESC_STATUS"] if n in msgs])
     vehicle = int(np.bincount(senders).argmax())
 
     def mine(name: str) -> NDArray[np.bool_] | None:
-        return None if name not in msgs else msgs.sysid[name] == vehicle
+        """The vehicle's messages of a name (None: all of them)."""
+        if name not in msgs:
+            return None
+        keep = msgs.sysid[name] == vehicle
+        return None if keep.all() else keep
 
     def series_time(name: str) -> NDArray[np.float64]:
         keep = mine(name)
@@ -303,98 +308,41 @@ def read_tlog(path: str | Path) -> TelemetryTable:
         keep = mine(name)
         return msgs[name][keep] if keep is not None else msgs[name]
 
-    params = _params(msgs, mine("PARAM_VALUE"))
-    parts: list[EscSamples] = []
-    for name in esc_names:
-        base = mavlink_esc.ESC_TELEMETRY_MESSAGES[name]
-        rec, t = rows(name), series_time(name)
-        for j in range(4):
-            count = rec["count"][:, j].astype(np.int64)
-            if not (count.any() or rec["voltage"][:, j].any() or rec["rpm"][:, j].any()):
-                continue  # this ESC never reported
-            si = mavlink_esc.esc_fields_to_si(
-                rec["temperature"][:, j], rec["voltage"][:, j], rec["current"][:, j], rec["rpm"][:, j]
-            )
-            # As the live agent (agent/samples.py): ArduPilot repeats an ESC's last values until a new
-            # packet comes; once the packet count has been seen to move, an unmoved count is a repeat (an
-            # ESC whose count never moves is read every time). A slot with count, speed, voltage and
-            # current all 0 has had no packet yet.
-            empty = (
-                (count == 0)
-                & (rec["rpm"][:, j] == 0)
-                & (rec["voltage"][:, j] == 0)
-                & (rec["current"][:, j] == 0)
-            )
-            seen = np.flatnonzero(~empty)  # the slot's packets, first or repeated
-            moved = np.zeros(seen.size, dtype=bool)
-            moved[1:] = np.diff(count[seen]) != 0
-            seen_moving = np.maximum.accumulate(moved)
-            repeat = np.zeros(seen.size, dtype=bool)
-            repeat[1:] = ~moved[1:] & seen_moving[:-1]
-            stale = empty.copy()
-            stale[seen[repeat]] = True
-            omega, current = si["omega_rad_s"], si["esc_current_a"]
-            omega[stale] = np.nan
-            current[stale] = np.nan
-            parts.append(
-                EscSamples(
-                    t, np.full(len(t), base + j), omega, current, si["bus_voltage_v"], si["esc_temp_c"]
-                )
-            )
-    if "ESC_STATUS" in msgs and not parts:
-        rec, t = rows("ESC_STATUS"), series_time("ESC_STATUS")
-        for j in range(4):
-            slot = rec["index"].astype(np.int64) + j
-            parts.append(
-                EscSamples(
-                    t,
-                    slot,
-                    rec["rpm"][:, j].astype(float) * mavlink_esc.RPM_TO_RAD_S,
-                    rec["current"][:, j].astype(float),
-                    rec["voltage"][:, j].astype(float),
-                )
-            )
-    esc = EscSamples.concat(parts)
-    slots = sorted(set(esc.slot.tolist()))
-    motor_of_slot = {s: mavlink_esc.motor_for_output(s + 1, params) for s in slots}
+    def offsets(name: str) -> NDArray[np.int64]:
+        keep = mine(name)
+        return msgs.offsets[name][keep] if keep is not None else msgs.offsets[name]
 
-    commands: dict[int, Series] = {}
-    if "SERVO_OUTPUT_RAW" in msgs:
-        rec, t = rows("SERVO_OUTPUT_RAW"), series_time("SERVO_OUTPUT_RAW")
-        low, high = mavlink_esc.pwm_range(params)
-        port = rec["port"].astype(np.int64)
-        for output in range(1, 17):
-            motor = mavlink_esc.motor_for_output(output, params)
-            if motor is None or motor in commands:
-                continue
-            # Outputs 9-16 come as port 1's servo1-8 (MAVLink 1) or as port 0's extension fields.
-            upper = output > 8 and bool((port == 1).any())
-            sel = port == (1 if upper else 0)
-            if sel.any():
-                pwm = rec[f"servo{output - 8 if upper else output}_raw"][sel].astype(float)
-                commands[motor] = (t[sel], mavlink_esc.throttle_from_pwm(pwm, low, high))
-
+    # The messages' reading is the live agent's (mavlink_messages), on the whole log at once; replay knows
+    # each parameter's first logged value from the start (ground stations fetch them after connecting).
+    first_params, params = _params(msgs, mine("PARAM_VALUE"))
+    reader = MessageReader(first_params)
+    reading = reader.read(
+        {
+            name: Messages(series_time(name), offsets(name), rows(name))
+            for name in READ_MESSAGES
+            if name in msgs
+        }
+    )
+    if not reader.esc_reported and "ESC_STATUS" not in msgs:
+        raise _no_esc(path, msgs)  # ESC_TELEMETRY messages, but no ESC ever had a packet
+    # the reading has mapped each row to its motor (the map can change mid-log): "slot" m - 1 is motor m
+    esc = EscSamples(
+        reading.time_s,
+        reading.motor - 1,
+        reading.omega_rad_s,
+        reading.esc_current_a,
+        reading.bus_voltage_v,
+        reading.esc_temp_c,
+    )
+    motors_seen = sorted(set(reading.motor.tolist()))
+    motor_of_slot: dict[int, int | None] = {m - 1: m for m in motors_seen}
+    commands = reading.commands()
     context: dict[str, Series] = {}
     battery: Series | None = None
-    if "BATTERY_STATUS" in msgs:
-        rec, t = rows("BATTERY_STATUS"), series_time("BATTERY_STATUS")
-        sel = rec["id"] == 0
-        volts = rec["voltages"][sel, 0].astype(float)
-        volts[volts == 65535] = np.nan
-        amps = rec["current_battery"][sel].astype(float)
-        amps[amps < 0] = np.nan
-        battery = (t[sel], volts / 1000.0)
+    if len(reading.battery_time_s):
+        battery = (reading.battery_time_s, reading.battery_voltage_v)
         context["battery_voltage_v"] = battery
-        context["battery_current_a"] = (t[sel], amps / 100.0)
-    elif "SYS_STATUS" in msgs:
-        rec, t = rows("SYS_STATUS"), series_time("SYS_STATUS")
-        volts = rec["voltage_battery"].astype(float)
-        volts[volts == 65535] = np.nan
-        amps = rec["current_battery"].astype(float)
-        amps[amps < 0] = np.nan
-        battery = (t, volts / 1000.0)
-        context["battery_voltage_v"] = battery
-        context["battery_current_a"] = (t, amps / 100.0)
+        context["battery_current_a"] = (reading.battery_time_s, reading.battery_current_a)
     if "GLOBAL_POSITION_INT" in msgs:
         rec, t = rows("GLOBAL_POSITION_INT"), series_time("GLOBAL_POSITION_INT")
         context["alt_m"] = (t, rec["relative_alt"] / 1000.0)
@@ -432,7 +380,7 @@ def read_tlog(path: str | Path) -> TelemetryTable:
         "format": "tlog",
         "params": params,
         "vehicle": vehicle_info,
-        "motors": mavlink_esc.expected_motors(params) or sorted({m for m in motor_of_slot.values() if m}),
+        "motors": mavlink_esc.expected_motors(params) or motors_seen,
         "message_counts": dict(msgs.counts),
         "time_origin_unix_s": msgs.first_time_us / 1e6,
         "duration_s": end_s,
@@ -440,3 +388,12 @@ def read_tlog(path: str | Path) -> TelemetryTable:
         "pwm_range_us": list(mavlink_esc.pwm_range(params)),
     }
     return motor_table(path, esc, motor_of_slot, commands, context, meta, battery)
+
+
+def _no_esc(path: Path, msgs: TlogMessages) -> DataError:
+    return no_esc_error(
+        path,
+        "MAVLink telemetry (.tlog)",
+        msgs.counts,
+        "ESC_TELEMETRY_1_TO_4/5_TO_8/9_TO_12 or ESC_STATUS",
+    )
