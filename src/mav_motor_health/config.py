@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from .diagnosis.detection import SequentialRule
-from .diagnosis.noise import NOISE_KEYS
+from .diagnosis.noise import NOISE_KEYS, band_noise_of
 from .diagnosis.plausibility import PlausibilityRule
 from .diagnosis.profile import PersistenceRule, SteadyRule, ThresholdProfile
 from .diagnosis.vehicle_check import VehicleCheckRule
@@ -500,6 +500,17 @@ def load_vehicle_params(name_or_path: str | Path = DEFAULT_MOTOR) -> VehiclePara
     return VehicleParams(
         motor=motor, per_motor=per_motor, esc=esc, current=current, noise=noise, source=source
     )
+
+
+#: the profile a vehicle is diagnosed with unless one is named: bands in units of its own noise where its
+#: file carries the noise (written by ``fit``), else the flight profile's absolute bands
+VEHICLE_PROFILE, FALLBACK_PROFILE = "flight_vehicle", "flight"
+
+
+def default_profile(vehicle: VehicleParams) -> str:
+    """:data:`VEHICLE_PROFILE` for a vehicle file that carries each motor's band noise, else
+    :data:`FALLBACK_PROFILE` (a bundled motor, a bench fit, a vehicle file from before the noise)."""
+    return VEHICLE_PROFILE if band_noise_of(vehicle.noise) else FALLBACK_PROFILE
 
 
 def _motor_tables(top: _Section, name: str, path: Path) -> list[tuple[int, _Section]]:

@@ -106,7 +106,7 @@ def test_the_replay_reader_and_the_agent_see_the_same_samples(flight):
 @pytest.mark.parametrize("profile", ["flight", "flight_vehicle"])
 def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor, tmp_path, profile):
     """The ESC map and the current sensor's gain of a vehicle file, and (flight_vehicle) each motor's noise
-    its bands are measured in and the battery offset its ESC-sum check subtracts: the agent calibrates each
+    its bands are measured in: the agent calibrates each
     batch with the same function replay calibrates the whole table with, and announces what replay
     announces."""
     from mav_motor_health.config import dump_vehicle_params, load_profile, load_vehicle_params
@@ -124,7 +124,7 @@ def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor
     )
     vehicle = load_vehicle_params(vehicle_file)
     table = vehicle.calibrate(table_from_fields(fields))
-    assert table.meta["battery_offset_a"] == 0.5
+    assert table.meta["esc_sum_checked"] is True
     batch = diagnose(table, vehicle.models(range(1, 7)), load_profile(profile), band_noise_of(vehicle.noise))
     plain = diagnose(table_from_fields(fields), paper_motor, load_profile("flight"))
     assert not np.array_equal(batch["state"], plain["state"])  # the map changes what is judged

@@ -13,7 +13,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from ..config import DEFAULT_MOTOR, _Section, load_motor_params, load_profile, load_vehicle_params, read_toml
+from ..config import (
+    DEFAULT_MOTOR,
+    _Section,
+    default_profile,
+    load_motor_params,
+    load_profile,
+    load_vehicle_params,
+    read_toml,
+)
 from ..diagnosis.noise import BandNoise, band_noise_of
 from ..diagnosis.profile import ThresholdProfile
 from ..errors import ConfigError, LinkError
@@ -117,11 +125,12 @@ def load_agent_config(
     hb_timeout = link.number("heartbeat_timeout_s", 3.0, minimum=0.5, maximum=60.0, unit="s")
     link.done()
 
-    file_params, file_profile = model.text("params", DEFAULT_MOTOR), model.text("profile", "flight")
+    file_params, file_profile = model.text("params", DEFAULT_MOTOR), model.text("profile", "")
     params_name = params or file_params
-    profile_name = profile or file_profile
     per_motor = model.table("motor")
     vehicle = load_vehicle_params(_resolve(params_name, base))
+    # unnamed: the vehicle's own noise bands where its file carries them (fit), else the flight profile
+    profile_name = profile or file_profile or default_profile(vehicle)
     motor_params: MotorParams | dict[int, MotorParams] = vehicle.models(range(1, motors + 1))
     overrides = {}
     for key in list(per_motor.data):

@@ -26,7 +26,7 @@ from ..diagnosis.states import MotorState
 from ..diagnosis.vehicle_check import VehicleFit
 from ..model.identify import CurrentReading, EscMap
 from ..model.params import MotorParams
-from ..model.vehicle import battery_offset_a, calibrate_columns
+from ..model.vehicle import calibrate_columns, esc_sum_checked
 from .samples import MotorSample
 
 __all__ = ["HealthMonitor", "MotorStatus", "StateChange"]
@@ -150,12 +150,11 @@ class HealthMonitor:
                 self.esc,
                 self.current,
             )["esc_current_a"]
-        offset = battery_offset_a(self.current) if self.esc is not None else 0.0
-        if offset is None:  # this vehicle's ESCs and battery monitor are not related: nothing to check
+        if self.esc is not None and not esc_sum_checked(self.current):
+            # this vehicle's ESCs and battery monitor are not related (identification): nothing to check
             sum_flags = np.zeros(motor.size, dtype=np.int16)
         else:
-            battery = cols["battery_current_a"] - offset
-            mismatch = self.current_sum.update(cols["time_s"], motor, esc_current, battery)
+            mismatch = self.current_sum.update(cols["time_s"], motor, esc_current, cols["battery_current_a"])
             sum_flags = np.where(mismatch, int(SensorIssue.CURRENT_SUM), 0).astype(np.int16)
         groups = {number: np.flatnonzero(motor == number) for number in motors}
         batches: dict[int, MotorBatch] = {}

@@ -8,11 +8,16 @@ import sys
 import warnings
 from pathlib import Path
 
-from ..config import DEFAULT_MOTOR, load_profile, load_vehicle_params
+from ..config import (
+    DEFAULT_MOTOR,
+    FALLBACK_PROFILE,
+    VEHICLE_PROFILE,
+    default_profile,
+    load_profile,
+    load_vehicle_params,
+)
 from ..replay import ReplayResult, collect_logs, print_verdicts, replay_log, replay_many
 from ._common import positive_int
-
-DEFAULT_REPLAY_PROFILE = "flight"
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -33,9 +38,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--profile",
-        default=DEFAULT_REPLAY_PROFILE,
+        default=None,
         metavar="P",
-        help=f"threshold profile: flight, testbed or a TOML file (default {DEFAULT_REPLAY_PROFILE})",
+        help="threshold profile: flight_vehicle, flight, testbed or a TOML file (default: "
+        f"{VEHICLE_PROFILE} for a vehicle file written by fit, which carries the vehicle's noise; else "
+        f"{FALLBACK_PROFILE})",
     )
     p.add_argument("--out", default="replay", metavar="DIR", help="output folder (default ./replay)")
     p.add_argument("--force", action="store_true", help="replace the files of an existing output folder")
@@ -71,7 +78,8 @@ def _window(text: str) -> tuple[float, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    vehicle, profile = load_vehicle_params(args.params or DEFAULT_MOTOR), load_profile(args.profile)
+    vehicle = load_vehicle_params(args.params or DEFAULT_MOTOR)
+    profile = load_profile(args.profile or default_profile(vehicle))
     if args.params and profile.steady.kind == "balance":
         for missing in vehicle.missing_for_flight():  # said once for the run, not once per log
             warnings.warn(

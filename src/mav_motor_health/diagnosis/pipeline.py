@@ -618,15 +618,14 @@ def _lowpass_residuals(
 
 
 def _current_sum_flags(table: TelemetryTable, profile: ThresholdProfile) -> NDArray[np.int16] | None:
-    """CURRENT_SUM flags per row where the ESC currents' sum disagrees with the battery monitor (less the
-    rest of the vehicle's draw, where the table's calibration knows it: ``meta["battery_offset_a"]``;
-    None there: the vehicle's ESCs and battery monitor are not related, no check)."""
+    """CURRENT_SUM flags per row where the ESC currents' sum disagrees with the battery monitor; none where
+    the table's calibration says the vehicle's ESCs and battery monitor are not related
+    (``meta["esc_sum_checked"]`` False, :func:`~..model.vehicle.esc_sum_checked`)."""
     esc = table.get("esc_current_a")
     battery = table.get("battery_current_a")
-    offset = table.meta.get("battery_offset_a", 0.0)
-    if esc is None or battery is None or offset is None or not np.isfinite(battery).any():
+    checked = table.meta.get("esc_sum_checked", True)
+    if esc is None or battery is None or not checked or not np.isfinite(battery).any():
         return None
-    battery = np.asarray(battery, dtype=float) - float(offset)
     order = np.argsort(table["time_s"], kind="stable")
     check = CurrentSumCheck(profile.plausibility, table.motors())
     mismatch = check.update(table["time_s"][order], table["motor"][order], esc[order], battery[order])

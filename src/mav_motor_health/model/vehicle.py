@@ -32,7 +32,7 @@ from .esc import DEFAULT_MIN_DUTY, motor_current_a
 from .identify import CurrentReading, EscMap, Identification
 from .params import MotorParams
 
-__all__ = ["CURRENT_SIDES", "VehicleParams", "battery_offset_a", "calibrate_columns"]
+__all__ = ["CURRENT_SIDES", "VehicleParams", "calibrate_columns", "esc_sum_checked"]
 
 #: how an ESC's current reading relates to the motor: see :class:`~.identify.CurrentReading`
 CURRENT_SIDES = ("input", "motor", "unusable")
@@ -77,12 +77,12 @@ class VehicleParams:
 
     def calibrate(self, table: TelemetryTable) -> TelemetryTable:
         """The table in the motor's terms (:func:`calibrate_columns`); the same table where there is no
-        ESC map. Its meta says what the ESCs' sum may be checked against (``battery_offset_a``,
-        :func:`battery_offset_a`)."""
+        ESC map. Its meta says whether the ESCs' sum may be checked against the battery monitor
+        (``esc_sum_checked``, :func:`esc_sum_checked`)."""
         if self.esc is None:
             return table
         columns = calibrate_columns(table.columns, self.esc, self.current)
-        meta = {**table.meta, "battery_offset_a": battery_offset_a(self.current)}
+        meta = {**table.meta, "esc_sum_checked": esc_sum_checked(self.current)}
         return TelemetryTable(columns, source=table.source, meta=meta)
 
     def missing_for_flight(self) -> list[str]:
@@ -95,17 +95,14 @@ class VehicleParams:
         return missing
 
 
-def battery_offset_a(current: CurrentReading | None) -> float | None:
-    """What the battery monitor reads beyond the ESCs' sum on this vehicle (the rest of its draw), for the
-    ESC-sum plausibility check: 0 where nothing is known (no vehicle file); the identified offset where
-    identification related the ESCs' sum to the battery monitor; None where it tried and could not (the
-    gain was assumed): the check would compare two currents this vehicle does not relate, and flag every
-    sample, setting a good current aside."""
-    if current is None:
-        return 0.0
-    if current.gain_from != "battery":
-        return None
-    return float(current.offset_a) if math.isfinite(current.offset_a) else 0.0
+def esc_sum_checked(current: CurrentReading | None) -> bool:
+    """Whether the ESC-sum plausibility check applies to this vehicle: yes where nothing is known (no
+    vehicle file) and where identification related the ESCs' sum to the battery monitor (the gain from the
+    battery); no where it could not (the gain assumed): the check would compare two currents this vehicle
+    does not relate and flag every sample, setting a good current aside. (The check compares the sum with
+    the whole battery current, not less the offset identification found: an offset is the least certain
+    part of that fit, and a large one would excuse a sum that does not add up.)"""
+    return current is None or current.gain_from == "battery"
 
 
 def calibrate_columns(
