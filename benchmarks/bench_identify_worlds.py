@@ -15,6 +15,13 @@ determined; then the median and the worst world, and how many worlds meet the is
 3 %, R within 15 %, J within 30 %, c0 within 0.01). R is judged only where the ESCs report a usable
 current, and against R/gain where no battery monitor could give the sensor's gain.
 
+A second table says what the log does to the electrical balance itself: k_e and R from the balance at
+the world's *true* idle offset and current side (:func:`~mav_motor_health.model.identify.
+electrical_balance_at`: no search, no prior), next to what drives its error: the logged command's
+jitter (the spread of successive logged commands, /√2, of the command range), the pairing of ESC samples
+with commands (``pairing_s``) and the share of current readings at exactly 0 (an ESC reports no negative
+current).
+
 The default worlds 1000-1019 are not the worlds 0-19 used while developing the identification: report
 figures from these.
 """
@@ -29,15 +36,19 @@ import tempfile
 import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from mav_motor_health.evaluation.worlds import write_identification_log  # noqa: E402
 from mav_motor_health.identification import identify_logs  # noqa: E402
-from mav_motor_health.sim.worlds import draw_world  # noqa: E402
+from mav_motor_health.model.identify import electrical_balance_at  # noqa: E402
+from mav_motor_health.sim.worlds import World, draw_world  # noqa: E402
+from mav_motor_health.telemetry import sources  # noqa: E402
 
 BOUNDS = {"k_e": 0.03, "R_ohm": 0.15, "J_kg_m2": 0.30, "idle_offset": 0.01}
 
@@ -54,12 +65,17 @@ class WorldResult:
     determined: dict[str, str]
     seconds: float
     failure: str = ""
+    #: the balance at the true idle offset and side (relative errors of k_e and R), and the log's
+    #: command jitter, pairing [s] and share of zero current readings
+    at_truth: dict[str, float] = field(default_factory=dict)
 
 
 def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
     world = draw_world(seed)
     truth = world.motor
     started = time.monotonic()
+
+    at_truth: dict[str, float] = {}
 
     def result(
         side_found: str, errors: dict[str, float], determined: dict[str, str], failure: str = ""
@@ -75,6 +91,7 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
             determined,
             time.monotonic() - started,
             failure,
+            at_truth,
         )
 
     with tempfile.TemporaryDirectory(prefix="mmh-world-") as tmp:
@@ -82,6 +99,7 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
         write_identification_log(seed, path, duration_s)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
+            at_truth.update(balance_at_truth(path, world))
             try:
                 found = identify_logs([path]).found
             except Exception as exc:  # a benchmark reports every world, a failure too
@@ -97,6 +115,34 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
         gain = world.current.gain if found.current.gain_from == "assumed" else 1.0
         errors["R_ohm"] = p.R_ohm / (truth.R_ohm / gain) - 1.0
     return result(found.current.side, errors, dict(found.determined_by))
+
+
+def balance_at_truth(path: Path, world: World) -> dict[str, float]:
+    """The electrical balance at the world's true idle offset and side, and the log's command jitter,
+    pairing and share of zero current readings (module doc)."""
+    table = sources.read(path)
+    jitter = []
+    for motor in table.motors():
+        sel = table["motor"] == motor
+        c = table["throttle"][sel]
+        c = c[np.isfinite(c)]
+        changes = c[np.concatenate([[True], c[1:] != c[:-1]])] if c.size else c
+        if changes.size > 10:
+            jitter.append(float(np.std(np.diff(changes)) / math.sqrt(2.0)))
+    reading = table["esc_current_a"]
+    out = {
+        "jitter": statistics.median(jitter) if jitter else math.nan,
+        "pairing_s": float(table.meta.get("pairing_s") or math.nan),
+        "zero": float(np.mean(reading[np.isfinite(reading)] == 0.0)),
+    }
+    if world.current.side != "unusable":
+        fits = electrical_balance_at(table, world.esc.idle_offset, world.current.side)
+        if fits:
+            truth = world.motor
+            out["k_e"] = statistics.median(v[0] for v in fits.values()) / truth.k_e - 1.0
+            r_ohm = statistics.median(v[1] for v in fits.values()) * world.current.gain
+            out["R_ohm"] = r_ohm / truth.R_ohm - 1.0
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -149,6 +195,29 @@ def main(argv: list[str] | None = None) -> int:
             f"{within:>7}/{len(values):<3}  {scale * bound:g}{unit}"
         )
     print(f"\n{len(results) - len(ok)} of {len(results)} worlds failed to identify")
+    print(
+        "\nthe electrical balance at the true idle offset and current side (no search, no prior), and what"
+        "\nthe log does to it: command jitter (of the command range), pairing, current readings at 0\n"
+    )
+    print(f"{'world':>6}{'side':>9}{'k_e':>9}{'R_ohm':>9}{'jitter':>9}{'pairing':>10}{'zero':>8}")
+    for r in results:
+        a = r.at_truth
+        if not a:
+            continue
+        cells = "".join(
+            f"{100 * a[k]:>+8.1f}%" if k in a and math.isfinite(a[k]) else f"{'-':>9}"
+            for k in ("k_e", "R_ohm")
+        )
+        print(
+            f"{r.seed:>6}{r.side_true:>9}{cells}{a['jitter']:>9.3f}{1000 * a['pairing_s']:>8.0f}ms"
+            f"{100 * a['zero']:>7.1f}%"
+        )
+    kes = [abs(r.at_truth["k_e"]) for r in results if math.isfinite(r.at_truth.get("k_e", math.nan))]
+    if kes:
+        print(
+            f"k_e at the true ESC map: median |err| {100 * statistics.median(kes):.3g} %, worst "
+            f"{100 * max(kes):.3g} %, within 3 %: {sum(v <= BOUNDS['k_e'] for v in kes)}/{len(kes)}"
+        )
     print(f"time per world: median {statistics.median(r.seconds for r in results):.1f} s")
     return 0
 

@@ -10,7 +10,7 @@ import pytest
 
 from mav_motor_health.config import load_motor_params
 from mav_motor_health.errors import FitError
-from mav_motor_health.model.identify import K_BIC_MARGIN, identify
+from mav_motor_health.model.identify import K_BIC_MARGIN, electrical_balance_at, identify
 from mav_motor_health.telemetry import sources
 from mav_motor_health.telemetry.table import TelemetryTable
 
@@ -76,3 +76,16 @@ def test_the_real_px4_log_current_scale_is_read_off_the_battery_monitor(real_log
     assert all(math.isfinite(v) for v in result.k_bic.values())
     best = min(result.k_bic, key=result.k_bic.get)
     assert result.params.k == (best if result.k_bic[3.0] - result.k_bic[best] >= K_BIC_MARGIN else 3.0)
+
+
+def test_the_electrical_balance_at_the_true_esc_map_recovers_the_motor_where_commands_pair(
+    paper_flight,
+) -> None:
+    # the simulated ESCs report duty x motor current with the command as the duty (idle offset 0), and
+    # the CSV pairs every ESC sample with its own command: the balance itself is sound
+    truth = load_motor_params()
+    fits = electrical_balance_at(paper_flight, 0.0, "input")
+    assert set(fits) == set(range(1, 7))
+    for k_e, r_ohm in fits.values():
+        assert abs(k_e / truth.k_e - 1) < 0.015
+        assert abs(r_ohm / truth.R_ohm - 1) < 0.10

@@ -56,7 +56,7 @@ from .esc import search_idle_offset as _pooled_electrical
 from .estimation import K_BIC_MARGIN, choose_exponent
 from .params import MotorParams
 
-__all__ = ["K_BIC_MARGIN", "CurrentReading", "EscMap", "Identification", "identify"]
+__all__ = ["K_BIC_MARGIN", "CurrentReading", "EscMap", "Identification", "electrical_balance_at", "identify"]
 
 FloatArray = NDArray[np.float64]
 
@@ -465,6 +465,26 @@ def identify(
         span_s=(float(t_all.min()), float(t_all.max())),
         findings=tuple(findings),
     )
+
+
+def electrical_balance_at(
+    table: TelemetryTable, idle_offset: float, side: str, *, bin_s: float = 0.25
+) -> dict[int, tuple[float, float]]:
+    """Each motor's (k_e, R/g) ≥ 0 from its electrical balance alone at a *given* idle offset and current
+    side (``"input"`` or ``"motor"``): no search, no prior, no refit where R lands on its bound (then
+    R/g is 0). The same bins and balance :func:`identify` fits: with the truth's ESC map and side it
+    measures what the balance itself makes of a log (``benchmarks/bench_identify_worlds.py``)."""
+    if side not in ("input", "motor"):
+        raise ValueError(f"side {side!r}: expected 'input' or 'motor'")
+    pairing_s = float(table.meta.get("pairing_s") or 0.0)
+    bin_s = max(bin_s, PAIRING_BINS * pairing_s) if math.isfinite(pairing_s) else bin_s
+    out = {}
+    for m in _motor_data(table, bin_s):
+        terms = _ElectricalTerms.from_samples(m.command, m.bus_v, m.omega, m.current, m.bins)
+        if terms.s.size >= 10:
+            coef, _, _ = _electrical_fit(terms, idle_offset, side)
+            out[m.motor] = (float(coef[0]), float(coef[1]))
+    return out
 
 
 def _rms(values: FloatArray) -> float:
