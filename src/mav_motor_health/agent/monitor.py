@@ -27,23 +27,11 @@ from ..diagnosis.vehicle_check import VehicleFit
 from ..model.identify import CurrentReading, EscMap
 from ..model.params import MotorParams
 from ..model.vehicle import calibrate_columns, esc_sum_checked
+from .samples import SAMPLE_COLUMNS as _SAMPLE_COLUMNS
 from .samples import MotorSample
 
 __all__ = ["HealthMonitor", "MotorStatus", "StateChange"]
 
-#: The sample columns the monitor reads.
-_SAMPLE_COLUMNS = (
-    "time_s",
-    "motor",
-    "voltage_v",
-    "omega_rad_s",
-    "current_a",
-    "bus_voltage_v",
-    "throttle",
-    "esc_current_a",
-    "esc_temp_c",
-    "battery_current_a",
-)
 #: Those the core sees (its batch, and the context a model with fitted effects may read).
 _CORE_COLUMNS = (
     "time_s",

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -112,19 +112,11 @@ class SampleAssembler:
         return samples_of(self.take())
 
 
+#: a sample's columns, in :class:`MotorSample`'s order
+SAMPLE_COLUMNS = tuple(f.name for f in fields(MotorSample))
+
+
 def samples_of(columns: Mapping[str, NDArray[Any]]) -> list[MotorSample]:
     """Table columns as :class:`MotorSample` objects, row by row."""
-    names = (
-        "motor",
-        "time_s",
-        "omega_rad_s",
-        "current_a",
-        "voltage_v",
-        "bus_voltage_v",
-        "throttle",
-        "esc_current_a",
-        "esc_temp_c",
-        "battery_current_a",
-    )
-    values = [np.asarray(columns[name]).tolist() for name in names]
+    values = [np.asarray(columns[name]).tolist() for name in SAMPLE_COLUMNS]
     return [MotorSample(*row) for row in zip(*values)]
