@@ -55,18 +55,25 @@ def main(argv: list[str] | None = None) -> int:
         f"{'designed /100 h':>16}{'k [sigma]':>10}{'h':>7}{'designed':>10}{'measured':>10}{'ratio':>8}   per motor-hour"
     )
     for rate, k in CASES:
-        rule = SequentialRule(false_alarms_per_100h=rate, reference_sigmas=k, observation_tau_s=TAU_S)
+        rule = SequentialRule(false_alarms_per_100h=rate, reference_sigmas=k)
         alarms = 0
         for z in noise:
             evidence = direction_evidence(z[0], z[1], np.ones(n, dtype=bool), 4.5)
             announced, _, _ = sequential_alarms(
-                rule, t, evidence, np.full(n, 2 * TAU_S), np.ones(n, dtype=bool), SequentialCarry(), 0.5
+                rule,
+                t,
+                evidence,
+                np.full(n, 2 * TAU_S),
+                np.ones(n, dtype=bool),
+                SequentialCarry(),
+                0.5,
+                TAU_S,
             )
             alarms += int(np.sum((announced[1:] != 0) & (announced[:-1] == 0)) + (announced[0] != 0))
         designed = rate / 100.0 / DESIGN_MOTORS
         measured = alarms / (MOTORS * args.hours)
         print(
-            f"{rate:>16g}{k:>10.1f}{rule.threshold():>7.2f}{designed:>10.2f}{measured:>10.2f}"
+            f"{rate:>16g}{k:>10.1f}{rule.threshold(TAU_S):>7.2f}{designed:>10.2f}{measured:>10.2f}"
             f"{measured / designed:>8.3f}"
         )
     print(f"\n(benchmark took {time.monotonic() - started:.0f} s)")

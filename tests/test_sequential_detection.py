@@ -43,6 +43,7 @@ def run(rule: SequentialRule, z: np.ndarray, carry: SequentialCarry | None = Non
         np.ones(n, dtype=bool),
         carry or SequentialCarry(),
         0.5,
+        TAU_S,
     )
 
 
@@ -62,7 +63,7 @@ def test_healthy_noise_raises_no_more_false_alarms_than_designed() -> None:
     measured: the test stays within its design (conservatively: the low-passed signal is smoother than
     the independent observations the design counts), and not absurdly far below it."""
     rng = np.random.default_rng(170)
-    rule = SequentialRule(false_alarms_per_100h=1e5, reference_sigmas=2.5, observation_tau_s=TAU_S)
+    rule = SequentialRule(false_alarms_per_100h=1e5, reference_sigmas=2.5)
     hours, motors = 10.0, 2
     alarms = 0
     for _ in range(motors):
@@ -83,7 +84,7 @@ def test_healthy_noise_raises_no_more_false_alarms_than_designed() -> None:
 )
 def test_a_lasting_departure_is_named_in_its_direction_about_when_the_design_says(shift, direction) -> None:
     rng = np.random.default_rng(3)
-    rule = SequentialRule(false_alarms_per_100h=1.0, reference_sigmas=2.5, observation_tau_s=TAU_S)
+    rule = SequentialRule(false_alarms_per_100h=1.0, reference_sigmas=2.5)
     n, onset = 3000, 1500
     z = healthy_noise(rng, n)
     z[:, onset:] += np.array(shift)[:, None]
@@ -93,7 +94,7 @@ def test_a_lasting_departure_is_named_in_its_direction_about_when_the_design_say
     assert named.size and named[0] >= onset and announced[named[0]] == direction
     # h/(δ − k) observations of 2τ each, δ the evidence in σ (the deviation itself: the step is instant)
     delay = (named[0] - onset) * DT_S
-    expected = rule.threshold() / (6.0 - rule.reference_sigmas) * 2 * TAU_S
+    expected = rule.threshold(TAU_S) / (6.0 - rule.reference_sigmas) * 2 * TAU_S
     assert 0.3 * expected <= delay <= 3.0 * expected
     assert (announced[named[0] :] == direction).mean() > 0.95
     # a departure that ends is cleared once its evidence has run out: S falls by k per observation, so
@@ -108,7 +109,7 @@ def test_a_lasting_departure_is_named_in_its_direction_about_when_the_design_say
 
 def test_any_split_into_calls_gives_the_same_alarms() -> None:
     rng = np.random.default_rng(11)
-    rule = SequentialRule(false_alarms_per_100h=1e5, reference_sigmas=2.0, observation_tau_s=TAU_S)
+    rule = SequentialRule(false_alarms_per_100h=1e5, reference_sigmas=2.0)
     z = healthy_noise(rng, 20000)
     z[:, 8000:9000] += 3.0
     whole, whole_level, _ = run(rule, z)

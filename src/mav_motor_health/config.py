@@ -321,9 +321,6 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
             detection=SequentialRule(
                 false_alarms_per_100h=detection.number("false_alarms_per_100h", 0.0, minimum=0.0),
                 reference_sigmas=detection.number("reference_sigmas", 2.0, unit="sigma"),
-                observation_tau_s=detection.number(
-                    "observation_tau_s", steady.number("residual_tau_s", 0.15) or 0.15, unit="s"
-                ),
             ),
             persistence=PersistenceRule(
                 default_announce_s=pers.number("default_announce_s", 0.1, minimum=0.0, unit="s"),
@@ -435,7 +432,6 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
             "[detection]",
             f"false_alarms_per_100h = {d.false_alarms_per_100h!r}",
             f"reference_sigmas = {d.reference_sigmas!r}",
-            f"observation_tau_s = {d.observation_tau_s!r}",
         ]
     lines += ["", "[plausibility]"]
     lines += [f"{name} = {value!r}" for name, value in profile.plausibility.__dict__.items()]

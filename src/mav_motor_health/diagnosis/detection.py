@@ -81,14 +81,12 @@ class SequentialRule:
 
     ``false_alarms_per_100h``: false fault announcements per 100 flight hours of the whole vehicle that
     the threshold is designed for (default 1, the issue's goal). ``reference_sigmas``: the reference k
-    of the CUSUM in σ (a departure must exceed it to count). ``observation_tau_s``: the shortest
-    low-pass time constant (the profile's ``steady.residual_tau_s``), which sets the observations per
-    hour of the design.
+    of the CUSUM in σ (a departure must exceed it to count). The observations per hour of the design
+    come from the profile's shortest low-pass (``steady.residual_tau_s``), given to :meth:`threshold`.
     """
 
     false_alarms_per_100h: float = 0.0
     reference_sigmas: float = 2.0
-    observation_tau_s: float = 0.15
 
     def __post_init__(self) -> None:
         if not (self.false_alarms_per_100h == 0 or 1e-6 <= self.false_alarms_per_100h <= 1e6):
@@ -101,20 +99,15 @@ class SequentialRule:
             raise ConfigError(
                 f"{self.reference_sigmas!r}", key="detection.reference_sigmas", expected="0 < k <= 10 (sigma)"
             )
-        if not self.observation_tau_s > 0:
-            raise ConfigError(
-                f"{self.observation_tau_s!r}", key="detection.observation_tau_s", expected="a time > 0 s"
-            )
 
     @property
     def on(self) -> bool:
         return self.false_alarms_per_100h > 0
 
-    def threshold(self) -> float:
-        """The CUSUM threshold h [σ·observations] this rule's rate asks for."""
-        return design_threshold(
-            self.false_alarms_per_100h / 100.0, self.reference_sigmas, 2.0 * self.observation_tau_s
-        )
+    def threshold(self, tau_s: float) -> float:
+        """The CUSUM threshold h [σ·observations] this rule's rate asks for, the deviations low-passed
+        with at least ``tau_s`` (one independent observation per 2τ)."""
+        return design_threshold(self.false_alarms_per_100h / 100.0, self.reference_sigmas, 2.0 * tau_s)
 
 
 @dataclass(frozen=True)
@@ -202,16 +195,18 @@ def sequential_alarms(
     judged: NDArray[np.bool_],
     carry: SequentialCarry,
     max_gap_s: float,
+    tau_s: float,
 ) -> tuple[NDArray[np.int8], NDArray[np.float64], SequentialCarry]:
     """One motor's CUSUMs over its samples: the announced direction at each (NORMAL where none), the
     largest statistic over h at each, and the new carry.
 
     ``evidence`` (directions × samples, :func:`direction_evidence`); ``observation_s`` the time of one
     independent observation at each sample (2τ); only ``judged`` samples add to the sums, and two judged
-    samples more than ``max_gap_s`` apart start them afresh (the evidence before the gap is stale). The
+    samples more than ``max_gap_s`` apart start them afresh (the evidence before the gap is stale);
+    ``tau_s`` the deviations' shortest low-pass, which the threshold is designed for. The
     sums are exact Lindley recursions, evaluated in closed form (S_n = W_n − min(−S_0, min_j W_j) over
     each stretch without a gap), so any split of the samples into calls gives the same result."""
-    h = rule.threshold()
+    h = rule.threshold(tau_s)
     k = rule.reference_sigmas
     t = np.asarray(time_s, dtype=float)
     n = t.size

@@ -446,6 +446,7 @@ def diagnose_motors(
                 judged[r, :count],
                 carries[r].sequential,
                 persistence.max_gap_s,
+                rule.residual_tau_s,
             )
             # a stall, a bad sensor (persistence) come before a direction
             mine = announced[r, :count]
