@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 
 from mav_motor_health.diagnosis import MotorState, StreamingDiagnoser, diagnose
 from mav_motor_health.diagnosis.persistence import PersistenceCarry, announce
-from mav_motor_health.diagnosis.profile import PersistenceRule, SteadyRule
+from mav_motor_health.diagnosis.profile import PersistenceRule
+from mav_motor_health.diagnosis.rules import StepRule
 from mav_motor_health.diagnosis.steady import SteadyCarry, steady_mask
 from mav_motor_health.sim import steady as steady_sim
 from mav_motor_health.telemetry import TelemetryTable
@@ -44,7 +45,7 @@ def test_ineligible_samples_neither_confirm_nor_break() -> None:
 def test_steady_rule_waits_after_a_step() -> None:
     t = np.arange(0, 2.0, 0.05)
     v = np.where(t < 1.0, 8.0, 10.0)
-    mask, carry = steady_mask(SteadyRule(step_v=0.2, settle_s=0.3), t, v)
+    mask, carry = steady_mask(StepRule(step_v=0.2, settle_s=0.3), t, v)
     assert not mask[t < 0.3].any() and mask[(t >= 0.3) & (t < 1.0)].all()
     assert not mask[(t >= 1.0) & (t < 1.29)].any() and mask[t >= 1.3].all()
     assert carry.last_step_time_s == 1.0
@@ -88,7 +89,7 @@ def test_steady_carry_split() -> None:
     rng = np.random.default_rng(9)
     t = np.cumsum(rng.uniform(0.01, 0.05, 300))
     v = 8 + np.cumsum(rng.normal(0, 0.08, 300))
-    rule = SteadyRule(step_v=0.1, settle_s=0.1)
+    rule = StepRule(step_v=0.1, settle_s=0.1)
     whole, _ = steady_mask(rule, t, v)
     a, carry = steady_mask(rule, t[:123], v[:123], SteadyCarry())
     b, _ = steady_mask(rule, t[123:], v[123:], carry)

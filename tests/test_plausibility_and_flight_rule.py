@@ -14,7 +14,7 @@ from mav_motor_health.diagnosis.plausibility import (
     stuck_mask,
     sum_mismatch,
 )
-from mav_motor_health.diagnosis.profile import SteadyRule
+from mav_motor_health.diagnosis.rules import DynamicRule
 from mav_motor_health.model import steady_state
 from mav_motor_health.model.dynamics import first_order_response, time_constant_s
 from mav_motor_health.model.esc import motor_current_a, motor_voltage_v
@@ -157,7 +157,7 @@ def sitl_like_flight(paper_motor, slow_motor: int | None = None):
 
 
 def test_constant_current_is_reported_and_the_slow_motor_found_from_speed(paper_motor) -> None:
-    profile = ThresholdProfile(name="t", steady=SteadyRule(kind="dynamic"))
+    profile = ThresholdProfile(name="t", steady=DynamicRule())
     result = diagnose(
         sitl_like_flight(paper_motor.replace(J_kg_m2=5e-5), slow_motor=1),
         paper_motor.replace(J_kg_m2=5e-5),
@@ -184,9 +184,7 @@ def test_dynamic_rule_follows_a_fluctuating_input(paper_motor) -> None:
     )
     step = diagnose(table, params, ThresholdProfile(name="step"))
     # the lag criterion alone (no step rule): it must accept samples between the steps
-    dyn = diagnose(
-        table, params, ThresholdProfile(name="dyn", steady=SteadyRule(kind="dynamic", step_v=10.0))
-    )
+    dyn = diagnose(table, params, ThresholdProfile(name="dyn", steady=DynamicRule(step_v=10.0)))
     assert np.abs(dyn["omega_rad_s"] - dyn["omega_model_rad_s"]).max() < 1.0  # the response is predicted
     assert set(dyn["announced"].tolist()) == {MotorState.NORMAL}
     assert dyn["steady"].mean() > 0.3  # and it accepts samples between the steps
@@ -197,7 +195,7 @@ def test_dynamic_rule_follows_a_fluctuating_input(paper_motor) -> None:
 def test_streaming_equals_batch_in_flight_mode(paper_motor) -> None:
     params = paper_motor.replace(J_kg_m2=5e-5)
     table = sitl_like_flight(params, slow_motor=2).select(np.arange(2400) % 3 == 0)
-    profile = ThresholdProfile(name="t", steady=SteadyRule(kind="dynamic"))
+    profile = ThresholdProfile(name="t", steady=DynamicRule())
     batch = diagnose(table, params, profile)
     stream = StreamingDiagnoser(params, profile, batch.motors())  # the vehicle's motors: the vehicle check
     order = np.argsort(batch["time_s"], kind="stable")

@@ -107,7 +107,7 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(paper_motor, moto
         alone = {name: np.concatenate([p[name] for p in parts_one[m]]) for name in parts_one[m][0]}
         rows = {name: np.concatenate([p[name] for p in parts_all[m]]) for name in parts_all[m][0]}
         assert_same(rows, alone, m)
-        assert together.carries[m].persistence == one_by_one.carries[m].persistence
+        assert together.carries[m].rules["persistence"] == one_by_one.carries[m].rules["persistence"]
         if any(np.isnan(c).any() for c in cols.values()):
             # A batch that ends on a lost sample carries the low-passes' last finite input, where the
             # whole array averages the next interval from the sample alone (model/dynamics.py): there

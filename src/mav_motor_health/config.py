@@ -10,13 +10,15 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Mapping
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 from .diagnosis.detection import SequentialRule
 from .diagnosis.noise import NOISE_KEYS, band_noise_of
 from .diagnosis.plausibility import PlausibilityRule
-from .diagnosis.profile import PersistenceRule, SteadyRule, ThresholdProfile
+from .diagnosis.profile import PersistenceRule, ThresholdProfile
+from .diagnosis.rules.base import CompareRule, check_settings, compare_rule
 from .diagnosis.vehicle_check import VehicleCheckRule
 from .errors import ConfigError
 from .model.identify import CurrentReading, EscMap
@@ -239,6 +241,84 @@ def _label_numbers(section: _Section, unit: str) -> tuple[tuple[str, float], ...
     return values
 
 
+#: the range the loader checks each ``[steady]`` setting against (minimum, maximum, unit); the rule checks
+#: the rest and holds the defaults (:mod:`.diagnosis.rules`)
+_STEADY_RANGES: dict[str, tuple[float | None, float | None, str]] = {
+    "step_v": (0.0, None, "V"),
+    "settle_s": (0.0, None, "s"),
+    "lag_fraction": (0.0, None, ""),
+    "residual_tau_s": (0.0, 5.0, "s"),
+    "activity_tau_s": (0.0, 60.0, "s"),
+    "activity_ref_v": (0.0, None, "V"),
+    "residual_tau_max_s": (0.0, 10.0, "s"),
+    "slow_factor": (0.0, 100.0, ""),
+    "bus_ref_v": (0.0, None, "V"),
+}
+
+
+#: a number without a range the loader checks (the dataclass checks it)
+_ANY: tuple[float | None, float | None, str] = (None, None, "")
+
+_PROFILE_RANGES: dict[str, tuple[float | None, float | None, str]] = {
+    "speed_band_rad_s": (0.0, None, "rad/s"),
+    "stop_speed_rad_s": (0.0, None, "rad/s"),
+    "stall_split_a": (0.0, None, "A"),
+    "stall_split_per_v": (None, None, "A/V"),
+    "stall_split_ref_v": (0.0, None, "V"),
+    "speed_only_band_frac": (0.0, 1.0, ""),
+    "free_speed_headroom_fraction": _ANY,  # 0 means the default; the range is checked by the profile
+    "stop_speed_fraction": (0.0, 0.99, ""),
+    "joint_band_sum": (0.0, 2.0, ""),
+    "slow_band_fraction": (0.0, 1.0, ""),
+    "min_command": (0.0, 1.0, ""),
+    "noise_bands": (0.0, 50.0, ""),
+    "stall_split_typical": (0.0, 100.0, ""),
+    "range_margin": (0.0, 10.0, ""),
+}
+_VEHICLE_CHECK_RANGES: dict[str, tuple[float | None, float | None, str]] = {
+    "speed_departure": (0.0, 1.0, ""),
+    "min_samples": (1.0, None, ""),
+    "min_span_s": (0.0, None, "s"),
+    "min_motors": (2.0, None, ""),
+}
+_DETECTION_RANGES: dict[str, tuple[float | None, float | None, str]] = {
+    "false_alarms_per_100h": (0.0, None, ""),
+    "reference_sigmas": (None, None, "sigma"),
+}
+_PERSISTENCE_RANGES: dict[str, tuple[float | None, float | None, str]] = {
+    "default_announce_s": (0.0, None, "s"),
+    "clear_s": (0.0, None, "s"),
+    "max_gap_s": (0.0, None, "s"),
+    "max_depth": (1.0, None, ""),
+}
+
+
+def _given(
+    section: _Section, ranges: Mapping[str, tuple[float | None, float | None, str]]
+) -> dict[str, float]:
+    """The numbers of ``ranges`` that the table gives, each checked against its (minimum, maximum, unit);
+    the keys it does not give keep their dataclass's defaults."""
+    values = {}
+    for name, (minimum, maximum, unit) in ranges.items():
+        if name in section.data:
+            values[name] = section.number(name, minimum=minimum, maximum=maximum, unit=unit)
+        else:
+            section.used.add(name)
+    return values
+
+
+def _compare_rule(section: _Section) -> CompareRule:
+    """The ``[steady]`` table's comparison rule: its ``kind`` (default ``step``) with the settings given."""
+    kind = section.text("kind", "step")
+    names = [name for name in section.data if name != "kind"]
+    try:
+        check_settings(kind, names)
+    except ConfigError as exc:
+        raise ConfigError(exc.reason, path=section.path, key=exc.key, expected=exc.expected) from None
+    settings = _given(section, {name: _STEADY_RANGES.get(name, _ANY) for name in names})
+    return compare_rule(kind, **settings)
+
+
 def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile:
     """A threshold profile from a TOML file with ``[profile]``, ``[steady]`` and ``[persistence]``."""
     path = resolve_params_file(name_or_path, "profiles")
@@ -258,8 +338,6 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
         2,
         "a list of [voltage_v, halfwidth_a] pairs of numbers",
     )
-    if band is None:  # absent: the paper's band (an empty list is kept, and refused by the profile)
-        band = ((4.0, 0.25), (11.0, 2.5))
     activity_band = _number_rows(
         p.raw("activity_band"),
         path,
@@ -270,66 +348,32 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> ThresholdProfile
     )
     announce = _label_numbers(pers.table("announce_s"), "s")
     per_activity = _label_numbers(pers.table("announce_per_activity_s"), "s per V")
+    # Only the keys given: the defaults live on the dataclasses
+    top_level: dict[str, object] = dict(_given(p, _PROFILE_RANGES))
+    if top_level.get("free_speed_headroom_fraction") == 0:  # 0 means the default
+        del top_level["free_speed_headroom_fraction"]
+    if band is not None:  # absent: the paper's band (an empty list is kept, and refused by the profile)
+        top_level["current_band_a"] = band
+    if activity_band is not None:
+        top_level["activity_band"] = activity_band
+    checks: dict[str, float | int] = dict(_given(vehicle, _VEHICLE_CHECK_RANGES))
+    for name in ("min_samples", "min_motors"):
+        if name in checks:
+            checks[name] = int(checks[name])
     try:
         profile = ThresholdProfile(
             name=p.text("name", path.stem),
             description=p.text("description", ""),
-            speed_band_rad_s=p.number("speed_band_rad_s", 20.0, minimum=0.0, unit="rad/s"),
-            current_band_a=band,  # type: ignore[arg-type]
-            stop_speed_rad_s=p.number("stop_speed_rad_s", 100.0, minimum=0.0, unit="rad/s"),
-            stall_split_a=p.number("stall_split_a", 6.0, minimum=0.0, unit="A"),
-            stall_split_per_v=p.number("stall_split_per_v", 0.0, unit="A/V"),
-            stall_split_ref_v=p.number("stall_split_ref_v", 11.1, minimum=0.0, unit="V"),
-            speed_only_band_frac=p.number("speed_only_band_frac", 0.15, minimum=0.0, maximum=1.0),
-            # 0 (or absent) means the default; the range is checked by ThresholdProfile
-            free_speed_headroom_fraction=p.number("free_speed_headroom_fraction", 0.0) or 0.5,
-            stop_speed_fraction=p.number("stop_speed_fraction", 0.0, minimum=0.0, maximum=0.99),
-            joint_band_sum=p.number("joint_band_sum", 0.0, minimum=0.0, maximum=2.0),
-            slow_band_fraction=p.number("slow_band_fraction", 0.0, minimum=0.0, maximum=1.0),
-            min_command=p.number("min_command", 0.0, minimum=0.0, maximum=1.0),
-            activity_band=activity_band or (),
-            noise_bands=p.number("noise_bands", 0.0, minimum=0.0, maximum=50.0),
-            stall_split_typical=p.number("stall_split_typical", 0.0, minimum=0.0, maximum=100.0),
-            range_margin=p.number("range_margin", 0.0, minimum=0.0, maximum=10.0),
-            steady=SteadyRule(
-                step_v=steady.number("step_v", 0.2, minimum=0.0, unit="V"),
-                settle_s=steady.number("settle_s", 0.3, minimum=0.0, unit="s"),
-                kind=steady.text("kind", "step"),
-                lag_fraction=steady.number("lag_fraction", 0.5, minimum=0.0),
-                residual_tau_s=steady.number("residual_tau_s", 0.0, minimum=0.0, maximum=5.0, unit="s"),
-                activity_tau_s=steady.number("activity_tau_s", 0.5, minimum=0.0, maximum=60.0, unit="s"),
-                activity_ref_v=steady.number("activity_ref_v", 0.0, minimum=0.0, unit="V"),
-                residual_tau_max_s=steady.number(
-                    "residual_tau_max_s", 2.0, minimum=0.0, maximum=10.0, unit="s"
-                ),
-                slow_factor=steady.number("slow_factor", 0.0, minimum=0.0, maximum=100.0),
-                bus_ref_v=steady.number("bus_ref_v", 0.0, minimum=0.0, unit="V"),
-            ),
-            plausibility=PlausibilityRule(
-                **{
-                    name: plaus.number(name, default)
-                    for name, default in PlausibilityRule().__dict__.items()
-                    if name in plaus.data
-                }
-            ),
-            vehicle_check=VehicleCheckRule(
-                speed_departure=vehicle.number("speed_departure", 0.10, minimum=0.0, maximum=1.0),
-                min_samples=int(vehicle.number("min_samples", 5, minimum=1)),
-                min_span_s=vehicle.number("min_span_s", 2.0, minimum=0.0, unit="s"),
-                min_motors=int(vehicle.number("min_motors", 3, minimum=2)),
-            ),
-            detection=SequentialRule(
-                false_alarms_per_100h=detection.number("false_alarms_per_100h", 0.0, minimum=0.0),
-                reference_sigmas=detection.number("reference_sigmas", 2.0, unit="sigma"),
-            ),
+            steady=_compare_rule(steady),
+            plausibility=PlausibilityRule(**_given(plaus, dict.fromkeys(PlausibilityRule().__dict__, _ANY))),
+            vehicle_check=VehicleCheckRule(**checks),  # type: ignore[arg-type]
+            detection=SequentialRule(**_given(detection, _DETECTION_RANGES)),
             persistence=PersistenceRule(
-                default_announce_s=pers.number("default_announce_s", 0.1, minimum=0.0, unit="s"),
-                clear_s=pers.number("clear_s", 0.5, minimum=0.0, unit="s"),
-                max_gap_s=pers.number("max_gap_s", float("inf"), minimum=0.0, unit="s"),
+                **_given(pers, _PERSISTENCE_RANGES),
                 announce_s=announce,
                 announce_per_activity_s=per_activity,
-                max_depth=pers.number("max_depth", 1.0, minimum=1.0),
             ),
+            **top_level,  # type: ignore[arg-type]
         )
     except ConfigError as exc:
         if exc.path is not None:
@@ -386,15 +430,7 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         "",
         "[steady]",
         f"kind = {_toml_string(profile.steady.kind)}",
-        f"step_v = {profile.steady.step_v!r}",
-        f"settle_s = {profile.steady.settle_s!r}",
-        f"lag_fraction = {profile.steady.lag_fraction!r}",
-        f"residual_tau_s = {profile.steady.residual_tau_s!r}",
-        f"activity_tau_s = {profile.steady.activity_tau_s!r}",
-        f"activity_ref_v = {profile.steady.activity_ref_v!r}",
-        f"residual_tau_max_s = {profile.steady.residual_tau_max_s!r}",
-        f"slow_factor = {profile.steady.slow_factor!r}",
-        *([f"bus_ref_v = {profile.steady.bus_ref_v!r}"] if profile.steady.bus_ref_v else []),
+        *(f"{f.name} = {getattr(profile.steady, f.name)!r}" for f in fields(profile.steady)),  # type: ignore[arg-type]
         "",
         "[persistence]",
         f"default_announce_s = {profile.persistence.default_announce_s!r}",

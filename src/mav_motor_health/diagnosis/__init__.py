@@ -1,4 +1,5 @@
-"""Diagnosis: steady-state rule, the fault decision tree, persistence and profiles."""
+"""Diagnosis: the rules (comparison with the model, sensors, the fault decision tree, the sequential test,
+persistence) behind one hook (:mod:`.rules`), the pipeline that loops over them, and profiles."""
 
 from .pipeline import (
     DIAGNOSIS_COLUMNS,
@@ -9,20 +10,26 @@ from .pipeline import (
     diagnose_motor,
     diagnose_motors,
 )
-from .profile import PersistenceRule, SteadyRule, ThresholdProfile
+from .profile import PersistenceRule, ThresholdProfile
+from .rules import BalanceRule, CompareRule, DynamicRule, Rule, StepRule, compare_rule
 from .states import MotorState, state_names
 from .tree import classify
 
 __all__ = [
     "DIAGNOSIS_COLUMNS",
+    "BalanceRule",
+    "CompareRule",
+    "DynamicRule",
     "MotorBatch",
     "MotorCarry",
     "MotorState",
     "PersistenceRule",
-    "SteadyRule",
+    "Rule",
+    "StepRule",
     "StreamingDiagnoser",
     "ThresholdProfile",
     "classify",
+    "compare_rule",
     "diagnose",
     "diagnose_motor",
     "diagnose_motors",

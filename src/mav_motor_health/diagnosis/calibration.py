@@ -23,12 +23,12 @@ from ..model.estimation import estimate, estimate_speed_only
 from ..model.params import MotorParams
 from ..telemetry.table import TelemetryTable
 from .plausibility import CURRENT_UNTRUSTED, PlausibilityRule, check_motor
-from .profile import SteadyRule
+from .rules import StepRule
 from .steady import steady_mask
 
 __all__ = ["Calibration", "calibrate"]
 
-_CALIBRATION_STEADY = SteadyRule(step_v=0.1, settle_s=0.5)
+_CALIBRATION_STEADY = StepRule(step_v=0.1, settle_s=0.5)
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,6 @@
-"""The diagnosis pipeline for one motor: plausibility → model → steady rule → tree → persistence.
+"""The diagnosis pipeline: a loop over the profile's rules (:attr:`.profile.ThresholdProfile.rules`:
+comparison with the model → sensors → bands → pairing → tree → slow look → judged → sequential test →
+persistence; :mod:`.rules`).
 
 :func:`diagnose_motors` is the single implementation: rows of samples, one row per motor, each with the
 carry from its previous call; every rule keeps its state in that carry and looks back only, so a split of
@@ -13,32 +15,18 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..model.balance import BalanceCarry, balance_deviations_rows
-from ..model.dynamics import ResponseCarry, first_order_responses, time_constant_s
-from ..model.equations import SteadyState, current_from_speed, steady_state
 from ..model.params import MotorParams
-from ..model.predict import predict_steady
 from ..telemetry.table import TelemetryTable
-from .detection import DIRECTIONS, SequentialCarry, direction_evidence, sequential_alarms
 from .noise import BandNoise, require_noise
-from .pairing import PairingCarry, pairing_error_rows
-from .persistence import PersistenceCarry, announce
-from .plausibility import (
-    CURRENT_UNTRUSTED,
-    CurrentSumCheck,
-    PlausibilityCarry,
-    SensorIssue,
-    check_motor_rows,
-)
-from .profile import SteadyRule, ThresholdProfile
-from .stall import StallCarry, stall_mean_rows
+from .plausibility import CurrentSumCheck, SensorIssue
+from .profile import ThresholdProfile
+from .rules.base import Frame, Rule
 from .states import MotorState
-from .steady import SteadyCarry, steady_mask_rows, warm_mask_rows
-from .tree import agreeing_departures, classify_depth
 from .vehicle_check import VehicleCheck, VehicleFit, apply_vehicle_fit
 
 __all__ = [
@@ -66,27 +54,24 @@ DIAGNOSIS_COLUMNS = (
     "sensor_flags",
 )
 
-#: States a stalled motor shows whatever its input: announced from transient samples too.
-_TRANSIENT_OK = (MotorState.F2_1, MotorState.F4_2, MotorState.STALLED)
-_SPEED_BROKEN = SensorIssue.SPEED_STUCK | SensorIssue.SPEED_RANGE
-
 
 @dataclass(frozen=True)
 class MotorCarry:
-    """Everything the pipeline remembers about one motor between calls."""
+    """Everything the pipeline remembers about one motor between calls: each rule's own carry, by the
+    rule's name (:attr:`.profile.ThresholdProfile.rules`)."""
 
-    steady: SteadyCarry = field(default_factory=SteadyCarry)
-    response: ResponseCarry = field(default_factory=ResponseCarry)
-    speed_residual: ResponseCarry = field(default_factory=ResponseCarry)
-    current_residual: ResponseCarry = field(default_factory=ResponseCarry)
-    plausibility: PlausibilityCarry = field(default_factory=PlausibilityCarry)
-    persistence: PersistenceCarry = field(default_factory=PersistenceCarry)
-    balance: BalanceCarry = field(default_factory=BalanceCarry)
-    stall: StallCarry = field(default_factory=StallCarry)
-    slow_omega: ResponseCarry = field(default_factory=ResponseCarry)
-    slow_current: ResponseCarry = field(default_factory=ResponseCarry)
-    pairing: PairingCarry = field(default_factory=PairingCarry)
-    sequential: SequentialCarry = field(default_factory=SequentialCarry)
+    rules: Mapping[str, Any] = field(default_factory=dict)
+
+    def of(self, rule: Rule) -> Any:
+        """``rule``'s carry (its new one before the motor's first sample)."""
+        carry = self.rules.get(rule.name)
+        return rule.new_carry() if carry is None else carry
+
+    @property
+    def announced(self) -> MotorState:
+        """The state announced after the last sample."""
+        persistence = self.rules.get("persistence")
+        return MotorState(persistence.announced if persistence is not None else MotorState.NORMAL)
 
 
 @dataclass(frozen=True)
@@ -190,305 +175,69 @@ def diagnose_motors(
     rows, n = t.shape
     carries = [c or MotorCarry() for c in given_carries or [None] * rows]
     counts = [n] * rows if lengths is None else [int(k) for k in lengths]
-    ragged = None if lengths is None else counts  # rows of different lengths (None: all full)
     if n == 0:
         return {name: np.zeros((rows, 0)) for name in _RESULT_COLUMNS}, carries
-    v = np.asarray(voltage_v, dtype=float)
-    omega_in = np.asarray(omega_rad_s, dtype=float)
-    current_in = np.asarray(current_a, dtype=float)
-    rule = profile.steady
-    balance_carries = [c.balance for c in carries]
-    stall_carries = [c.stall for c in carries]
-    slow_carries = [c.slow_omega for c in carries] + [c.slow_current for c in carries]
-    slow: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]] | None = None  # the slow look
-    activity: NDArray[np.float64] | None = None
-    judged_v = v
-    if rule.kind == "balance":
-        # volts of the rule scaled with the vehicle's bus voltage (a 12S vehicle's input moves 3.3 times
-        # the volts of a 3S one for the same command)
-        volts = _bus_scale(rule, bus_voltage_v, t.shape)
-        bal, balance_carries = balance_deviations_rows(
-            params,
-            t,
-            v,
-            omega_in,
-            current_in,
-            rule.residual_tau_s,
-            rule.activity_tau_s,
-            balance_carries,
-            counts,
-            activity_ref_v=rule.activity_ref_v * volts,
-            tau_max_s=rule.residual_tau_max_s,
-            input_current_a=sensor_current_a if command is not None else None,
-            duty=command if sensor_current_a is not None else None,
-        )
-        activity, judged_v = bal.activity_v, bal.voltage_v
-        omega_pred, current_pred = bal.omega_model_rad_s, bal.current_model_a
-        # A stalled motor: the speed itself (the lower of the sample and its low-pass, so that a
-        # start-up kick does not break the run and the first slow sample counts), and the current
-        # averaged since the stall began (diagnosis/stall.py: the low-pass still holds the flight's).
-        stall_speed = np.fmin(omega_in, bal.omega_mean_rad_s)
-        stop_speed = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * omega_pred)
-        stalled_like = stall_speed < stop_speed
-        omega_seen = np.where(stalled_like, stall_speed, omega_pred + bal.delta_omega_rad_s)
-        omega_seen = np.where(np.isfinite(omega_in), omega_seen, np.nan)
-        stall_current, stall_carries = stall_mean_rows(current_in, stalled_like, stall_carries, ragged)
-        current_seen = np.where(stalled_like, stall_current, current_pred + bal.delta_current_a)
-        current_seen = np.where(np.isfinite(current_in), current_seen, np.nan)
-        # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air
-        # is no step at all) puts two operating points into the low-passes: judge after settle_s. A new
-        # stream (the first sample, or after a gap) waits until the activity is known too.
-        step_v = rule.step_v * volts + 3.0 * np.nan_to_num(bal.zigzag_v)  # the jumps as measured, not scaled
-        # A motor whose low-passed input is at idle (below min_command: spin-down, braking with its current
-        # unread) restarts the wait: when it comes back the low-passes still hold the idle. The low-passed
-        # input, not the sample: in gusty air single commands dip to idle and back all the time.
-        at_idle = None
-        if command is not None and profile.min_command > 0:
-            cmd = np.asarray(command, dtype=float)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                bus_v = np.where(cmd > 0.05, v / cmd, np.nan)  # the input is command × bus voltage
-            at_idle = judged_v < profile.min_command * bus_v
-        slow_on = rule.slow_factor > 0
-        warm, steady_carries = warm_mask_rows(
-            t,
-            v,
-            rule.settle_s,
-            profile.persistence.max_gap_s,
-            step_v,
-            [c.steady for c in carries],
-            counts,
-            # the activity's low-pass has to fill up first, and the deviations' (longer in gusts)
-            start_settle_s=np.maximum(3.0 * rule.activity_tau_s, 3.0 * bal.tau_s),
-            restart=at_idle,
-            also_settle_s=rule.slow_factor * rule.settle_s if slow_on else None,
-        )
-        if slow_on:
-            warm, slow_warm = warm[0], warm[1]
-        steady = warm & np.isfinite(v) & np.isfinite(omega_in)
-        if slow_on:
-            # The slow look: the deviations averaged slow_factor times longer, judged as long after a step
-            slow_tau = rule.slow_factor * bal.tau_s
-            slow_both, slow_carries = first_order_responses(
-                t,
-                np.concatenate([bal.delta_omega_rad_s, bal.delta_current_a]),
-                slow_tau,
-                slow_carries,
-                counts * 2,
-            )
-            # only where the low-pass is not already lengthened by the activity (calm air): in gusts the
-            # fast look averages long already, and a slower one would hold every gust's upset for seconds
-            calm = bal.tau_s <= rule.residual_tau_s
-            slow = (slow_both[:rows], slow_both[rows:], slow_warm & steady & ~stalled_like & calm)
-        response_carries = [c.response for c in carries]
-        residual_carries = [c.speed_residual for c in carries] + [c.current_residual for c in carries]
-        omega_expected = omega_pred
-    else:
-        model = _steady_model(params, v, context, counts)
-        if rule.kind == "dynamic" and params.J_kg_m2 is not None:
-            tau = time_constant_s(params, model.omega_rad_s)
-            omega_pred, response_carries = first_order_responses(
-                t, model.omega_rad_s, tau, [c.response for c in carries], counts
-            )
-            turning = omega_pred > 0
-            # Current from the torque balance (eq. 7 plus the inertia's share, J·dω/dt with dω/dt of the
-            # first-order response), not from eq. 2: eq. 2 would turn every sampled command jitter into
-            # current jitter divided by R (6 A per volt on the paper's motor).
-            accel = (model.omega_rad_s - omega_pred) / tau
-            current_pred = np.where(
-                turning,
-                current_from_speed(params, omega_pred) + params.J_kg_m2 * accel / params.k_t,
-                model.current_a,
-            )
-            lag = rule.lag_fraction
-            # The input is known only at the samples: a sample is quasi-steady where the response has
-            # caught up with the steady state and the input has not stepped since the last samples (a
-            # command that jumps between samples hides what the motor saw in between).
-            held, steady_carries = steady_mask_rows(rule, t, v, [c.steady for c in carries], counts)
-            steady = (
-                held
-                & (np.abs(omega_pred - model.omega_rad_s) <= lag * profile.speed_band_rad_s)
-                & (np.abs(current_pred - model.current_a) <= lag * profile.current_halfwidth_a(v))
-            )
-        else:
-            omega_pred, current_pred = model.omega_rad_s, model.current_a
-            steady, steady_carries = steady_mask_rows(rule, t, v, [c.steady for c in carries], counts)
-            response_carries = [c.response for c in carries]
-        omega_seen, current_seen, residual_carries = _lowpass_residuals(
-            rule.residual_tau_s, t, omega_in, current_in, omega_pred, current_pred, carries, counts
-        )
-        omega_expected = np.minimum(omega_pred, model.omega_rad_s)
-    reported = current_in if sensor_current_a is None else np.asarray(sensor_current_a, dtype=float)
-    flags, plausibility_carries = check_motor_rows(
-        profile.plausibility,
-        t,
-        None if command is None else np.asarray(command, dtype=float),
-        reported,
-        omega_in,
-        [c.plausibility for c in carries],
-        ragged,
-    )
-    if extra_flags is not None:
-        flags = flags | extra_flags
-    speed_band: NDArray[np.float64] | float
-    if profile.noise_bands > 0:
-        speed_band, current_band = _noise_bands(profile, noise, activity, t.shape)
-        current_band_below = current_band.copy()
-    else:
-        speed_band, current_band, current_band_below = profile.bands(judged_v, activity)
-    pairing_error = np.full(t.shape, np.nan)
-    pairing_carries = [c.pairing for c in carries]
-    if rule.kind == "balance" and pairing_s:
-        # a command paired loosely with its sample: the current is not used where the voltage error it
-        # could cause is a sizeable part of the speed band, nothing is judged where it is a sizeable part
-        # of the speed-only band (diagnosis/pairing.py)
-        pairing_error, pairing_carries = pairing_error_rows(
-            params, t, v, omega_pred, pairing_s, bal.tau_s, pairing_carries, ragged
-        )
-        plaus = profile.plausibility
-        flags = np.where(
-            pairing_error > plaus.pairing_current_share * np.asarray(speed_band, dtype=float),
-            flags | SensorIssue.CURRENT_UNPAIRED,
-            flags,
-        ).astype(np.int16)
-        speed_only_band = profile.speed_only_band(speed_band, omega_pred)
-        steady = steady & ~(pairing_error > plaus.pairing_speed_share * speed_only_band)
-    current_trusted = ((flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(current_in)
-    state, depth = classify_depth(
+
+    def floats(x: NDArray | None) -> NDArray[np.float64] | None:
+        return None if x is None else np.asarray(x, dtype=float)
+
+    frame = Frame(
+        params,
         profile,
-        omega_rad_s=omega_seen,
-        omega_model_rad_s=omega_pred,
-        current_a=current_seen,
-        current_model_a=current_pred,
-        voltage_v=judged_v,
+        t,
+        np.asarray(voltage_v, dtype=float),
+        np.asarray(omega_rad_s, dtype=float),
+        np.asarray(current_a, dtype=float),
+        counts,
+        ragged=None if lengths is None else counts,  # rows of different lengths (None: all full)
         bus_voltage_v=bus_voltage_v,
-        current_trusted=current_trusted,
-        omega_expected_rad_s=omega_expected,
-        activity_v=activity,
-        # No fault turns the motor faster than V/k_e (tree rule 2). The balance rule judges the model plus
-        # a low-passed deviation, not a measured speed: its band is the deviation's noise, which the
-        # physical cap does not bound, so it keeps the full band.
-        omega_free_rad_s=None if rule.kind == "balance" else v / params.k_e,
-        bands=(speed_band, current_band, current_band_below),
-        stall_split_a=_stall_split(profile, noise, bus_voltage_v, t.shape),
+        command=floats(command),
+        sensor_current_a=floats(sensor_current_a),
+        extra_flags=extra_flags,
+        context=context,
+        pairing_s=pairing_s,
+        noise=noise,
     )
-    if slow is not None and profile.slow_band_fraction > 0:
-        # Where the tree sees nothing, a small lasting departure may still show in the longer averages:
-        # named where speed and current agree on a fault, against the narrowed bands
-        slow_w, slow_i, ready = slow
-        candidates = ready & (state == MotorState.NORMAL) & current_trusted
-        if np.any(candidates):
-            fraction = profile.slow_band_fraction
-            slow_state, slow_depth = agreeing_departures(
-                slow_w,
-                slow_i,
-                fraction * np.asarray(speed_band, dtype=float),
-                fraction * np.where(slow_i < 0, current_band_below, current_band),
-                profile.joint_band_sum or 2.0,
-            )
-            use = candidates & (slow_state != MotorState.NORMAL)
-            state[use] = slow_state[use]
-            depth[use] = slow_depth[use]
-    state[(flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT  # never a motor fault from a bad sensor
-    if profile.range_margin > 0 and noise is not None and profile.noise_bands > 0:
-        # beyond the speeds identification checked the model at: not judged (a stall still is, below)
-        known = np.stack([n.known(omega_pred[r], profile.range_margin) for r, n in enumerate(noise)])
-        steady = steady & (known | np.isin(state, _TRANSIENT_OK))
-    eligible = (steady | np.isin(state, _TRANSIENT_OK)) & (state != MotorState.NO_DATA)
-    if command is not None and profile.min_command > 0:
-        idle = np.asarray(command, dtype=float) < profile.min_command  # idle and spin-up: not judged
-        eligible &= ~idle
-        steady = steady & ~idle
-    depth[state == MotorState.SENSOR_FAULT] = 1.0
-    persistence = profile.persistence
-    max_depth = persistence.max_depth
-    rate = np.minimum(depth, max_depth) if max_depth > 1 else None
-    hold_s, hold_per_activity_s = persistence.hold_s(), persistence.hold_per_activity_s()
-    # the fault directions are the sequential test's (detection.py) where the profile has one;
-    # persistence keeps the rest (stalls, sensor faults)
-    sequential = profile.detection.on and rule.kind == "balance"
-    persisted = state
-    if sequential:
-        persisted = np.where(np.isin(state, DIRECTIONS), MotorState.NORMAL, state).astype(state.dtype)
-    announced = np.zeros(t.shape, dtype=np.int8)
-    persistence_carries = []
-    for r, (carry, count) in enumerate(zip(carries, counts)):
-        announced[r, :count], persistence_carry = announce(
-            hold_s,
-            t[r, :count],
-            persisted[r, :count],
-            eligible[r, :count],
-            carry.persistence,
-            persistence.max_gap_s,
-            hold_per_activity_s=hold_per_activity_s,
-            activity=None if activity is None else activity[r, :count],
-            rate=None if rate is None else rate[r, :count],
-        )
-        persistence_carries.append(persistence_carry)
-    detection_level = np.full(t.shape, np.nan)
-    sequential_carries = [c.sequential for c in carries]
-    if sequential:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            evidence = direction_evidence(
-                (omega_seen - omega_pred) / (np.asarray(speed_band, dtype=float) / profile.noise_bands),
-                (current_seen - current_pred) / (current_band / profile.noise_bands),
-                current_trusted,
-                profile.noise_bands,
-            )
-        # judged: the steady samples the tree named a motor state on (not a stall, a bad sensor, no data)
-        judged = steady & ~np.isin(state, _NOT_DIRECTIONS)
-        observation_s = 2.0 * bal.tau_s
-        for r, count in enumerate(counts):
-            found, detection_level[r, :count], sequential_carries[r] = sequential_alarms(
-                profile.detection,
-                t[r, :count],
-                evidence[:, r, :count],
-                observation_s[r, :count],
-                judged[r, :count],
-                carries[r].sequential,
-                persistence.max_gap_s,
-                rule.residual_tau_s,
-            )
-            # a stall, a bad sensor (persistence) come before a direction
-            mine = announced[r, :count]
-            announced[r, :count] = np.where(mine == MotorState.NORMAL, found, mine)
-    columns: dict[str, NDArray] = {
-        "state": state,
-        "announced": announced,
-        "steady": steady,
-        "omega_model_rad_s": omega_pred,
-        "current_model_a": current_pred,
-        "sensor_flags": flags,
-        "omega_judged_rad_s": omega_seen,
-        "current_judged_a": current_seen,
-        "speed_band_rad_s": np.broadcast_to(speed_band, t.shape).astype(float),
-        "current_band_a": current_band,
-        "current_band_below_a": current_band_below,
-        "input_activity_v": np.full(t.shape, np.nan) if activity is None else activity,
-        "depth": depth,
-        "omega_slow_judged_rad_s": np.full(t.shape, np.nan) if slow is None else omega_pred + slow[0],
-        "current_slow_judged_a": np.full(t.shape, np.nan) if slow is None else current_pred + slow[1],
-        "slow_ready": np.zeros(t.shape, dtype=bool) if slow is None else slow[2],
-        "pairing_error_rad_s": pairing_error,
-        "detection_level": detection_level,
+    new: list[dict[str, Any]] = [{} for _ in range(rows)]
+    for rule in profile.rules:
+        judged = rule.judge(frame, [c.of(rule) for c in carries])
+        for r in range(rows):
+            new[r][rule.name] = judged[r]
+    return _result_columns(frame), [MotorCarry(rules) for rules in new]
+
+
+def _result_columns(frame: Frame) -> dict[str, NDArray]:
+    """The frame as :data:`_RESULT_COLUMNS` (NaN or False where a rule did not run)."""
+    shape = frame.shape
+    slow = frame.slow
+
+    def nan_unless(values: NDArray | None) -> NDArray:
+        return np.full(shape, np.nan) if values is None else values
+
+    return {
+        "state": frame.state,
+        "announced": frame.announced,
+        "steady": frame.steady,
+        "omega_model_rad_s": frame.omega_model_rad_s,
+        "current_model_a": frame.current_model_a,
+        "sensor_flags": frame.sensor_flags,
+        "omega_judged_rad_s": frame.omega_judged_rad_s,
+        "current_judged_a": frame.current_judged_a,
+        "speed_band_rad_s": np.broadcast_to(frame.speed_band_rad_s, shape).astype(float),
+        "current_band_a": frame.current_band_a,
+        "current_band_below_a": frame.current_band_below_a,
+        "input_activity_v": nan_unless(frame.activity_v),
+        "depth": frame.depth,
+        "omega_slow_judged_rad_s": nan_unless(
+            None if slow is None else frame.omega_model_rad_s + slow.delta_omega_rad_s
+        ),
+        "current_slow_judged_a": nan_unless(
+            None if slow is None else frame.current_model_a + slow.delta_current_a
+        ),
+        "slow_ready": np.zeros(shape, dtype=bool) if slow is None else slow.ready,
+        "pairing_error_rad_s": nan_unless(frame.pairing_error_rad_s),
+        "detection_level": nan_unless(frame.detection_level),
     }
-    new_carries = [
-        MotorCarry(
-            steady=steady_carries[r],
-            response=response_carries[r],
-            speed_residual=residual_carries[r],
-            current_residual=residual_carries[rows + r],
-            plausibility=plausibility_carries[r],
-            persistence=persistence_carries[r],
-            balance=balance_carries[r],
-            stall=stall_carries[r],
-            slow_omega=slow_carries[r],
-            slow_current=slow_carries[rows + r],
-            pairing=pairing_carries[r],
-            sequential=sequential_carries[r],
-        )
-        for r in range(rows)
-    ]
-    return columns, new_carries
 
 
 #: the result columns of :func:`diagnose_motors`
@@ -512,110 +261,6 @@ _RESULT_COLUMNS = (
     "pairing_error_rad_s",
     "detection_level",
 )
-
-#: states the sequential test does not judge (persistence announces them)
-_NOT_DIRECTIONS = (
-    MotorState.F2_1,
-    MotorState.F4_2,
-    MotorState.STALLED,
-    MotorState.SENSOR_FAULT,
-    MotorState.NO_DATA,
-)
-
-
-def _bus_scale(
-    rule: SteadyRule, bus_voltage_v: NDArray[np.float64] | None, shape: tuple[int, ...]
-) -> NDArray[np.float64] | float:
-    """What the rule's volts (``step_v``, ``activity_ref_v``) are multiplied by at each sample: the bus
-    voltage over ``bus_ref_v`` where the rule scales with it and the sample has one, else 1."""
-    if not rule.bus_ref_v > 0 or bus_voltage_v is None:
-        return 1.0
-    bus = np.broadcast_to(np.asarray(bus_voltage_v, dtype=float), shape)
-    with np.errstate(invalid="ignore"):
-        return np.where(np.isfinite(bus) & (bus > 0), bus / rule.bus_ref_v, 1.0)
-
-
-def _stall_split(
-    profile: ThresholdProfile,
-    noise: Sequence[BandNoise] | None,
-    bus_voltage_v: NDArray[np.float64] | None,
-    shape: tuple[int, ...],
-) -> NDArray[np.float64] | None:
-    """The F2.1/F4.2 split of each row where the profile scales it with the motor's typical current and
-    the motor's noise has one; None: the profile's split everywhere."""
-    if not (profile.stall_split_typical > 0 and noise):
-        return None
-    typical = np.array([n.current_typical_a for n in noise], dtype=float)
-    if not np.isfinite(typical).any():
-        return None
-    fallback = np.broadcast_to(np.asarray(profile.stall_split(bus_voltage_v), dtype=float), shape)
-    own = profile.stall_split_typical * typical[:, None]
-    return np.where(np.isfinite(own), own, fallback)
-
-
-def _noise_bands(
-    profile: ThresholdProfile,
-    noise: Sequence[BandNoise] | None,
-    activity: NDArray[np.float64] | None,
-    shape: tuple[int, ...],
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The speed and current bands of each row: ``noise_bands`` times its motor's σ(activity)."""
-    if noise is None or len(noise) != shape[0]:
-        raise ValueError(f"profile {profile.name!r} needs each motor's noise (noise_bands); none given")
-    a = np.zeros(shape) if activity is None else activity
-    speed, current = np.empty(shape), np.empty(shape)
-    for r, motor_noise in enumerate(noise):
-        speed[r], current[r] = motor_noise.sigmas(a[r])
-    return profile.noise_bands * speed, profile.noise_bands * current
-
-
-def _steady_model(
-    params: MotorParams,
-    v: NDArray[np.float64],
-    context: Mapping[str, NDArray[np.float64]] | None,
-    counts: list[int],
-) -> SteadyState:
-    """The steady state at each sample: the base model for all rows at once, a model with fitted effects
-    row by row (its context is per motor)."""
-    if not params.effects:
-        return steady_state(params, v)
-    omega, current = np.full(v.shape, np.nan), np.full(v.shape, np.nan)
-    for r, count in enumerate(counts):
-        row_context = None if context is None else {k: np.asarray(x)[r, :count] for k, x in context.items()}
-        model = predict_steady(params, v[r, :count], row_context)
-        omega[r, :count], current[r, :count] = model.omega_rad_s, model.current_a
-    return SteadyState(omega, current)
-
-
-def _lowpass_residuals(
-    tau_s: float,
-    t: NDArray[np.float64],
-    omega_rad_s: NDArray[np.float64],
-    current_a: NDArray[np.float64],
-    omega_pred: NDArray[np.float64],
-    current_pred: NDArray[np.float64],
-    carries: list[MotorCarry],
-    counts: list[int],
-) -> tuple[NDArray[np.float64], NDArray[np.float64], list[ResponseCarry]]:
-    """The measurements as the tree judges them for the step and dynamic rules: the prediction plus the
-    low-passed residual (no low-pass with ``tau_s`` = 0); the carries: speed residuals, then currents."""
-    residual_carries = [c.speed_residual for c in carries] + [c.current_residual for c in carries]
-    omega_seen, current_seen = omega_rad_s, current_a
-    if tau_s > 0:
-        # Commands are sampled, the motor sees every control cycle in between: the residual carries the
-        # aliased control noise. Low-passing the residual (not the measurement) keeps a fault's lasting
-        # offset and averages that noise, as the paper's moving average did for the current.
-        rows = t.shape[0]
-        residuals, residual_carries = first_order_responses(
-            t,
-            np.concatenate([omega_seen - omega_pred, current_seen - current_pred]),
-            tau_s,
-            residual_carries,
-            counts * 2,
-        )
-        omega_seen = np.where(np.isfinite(omega_seen), omega_pred + residuals[:rows], np.nan)
-        current_seen = np.where(np.isfinite(current_seen), current_pred + residuals[rows:], np.nan)
-    return omega_seen, current_seen, residual_carries
 
 
 def _current_sum_flags(table: TelemetryTable, profile: ThresholdProfile) -> NDArray[np.int16] | None:
@@ -999,4 +644,4 @@ class StreamingDiagnoser:
 
     def announced(self, motor: int) -> MotorState:
         carry = self.carries.get(motor)
-        return MotorState(carry.persistence.announced if carry else MotorState.NORMAL)
+        return carry.announced if carry else MotorState.NORMAL

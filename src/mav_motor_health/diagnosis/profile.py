@@ -1,13 +1,16 @@
 """Threshold profiles: the decision tree's limits as data (paper section III.B).
 
 A profile holds the bands around the model, the stop speed and the stall-current split, the
-steady-state rule's settings and the persistence times. ``testbed`` is the paper's; ``flight`` is tuned
+comparison rule (``[steady]``, :mod:`.rules`) and the persistence times, and lists the pipeline's rules
+(:attr:`ThresholdProfile.rules`). ``testbed`` is the paper's; ``flight`` is tuned
 for fluctuating input. Profiles load from TOML in ``params/profiles/`` (see :mod:`..config`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -15,82 +18,14 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import ConfigError
 from .detection import SequentialRule
 from .plausibility import PlausibilityRule
+from .rules import BalanceRule, CompareRule, StepRule
 from .states import MotorState
 from .vehicle_check import VehicleCheckRule
 
-__all__ = ["PersistenceRule", "SteadyRule", "ThresholdProfile"]
+if TYPE_CHECKING:
+    from .rules.base import Rule
 
-
-STEADY_KINDS = ("step", "dynamic", "balance")
-
-
-@dataclass(frozen=True)
-class SteadyRule:
-    """When a sample counts as steady state, and what the measurement is compared with.
-
-    ``kind = "step"`` (the testbed): a change of input voltage larger than ``step_v`` between two samples
-    is a step, and samples are not steady for ``settle_s`` after it; measurements are compared with the
-    steady-state model.
-
-    ``kind = "dynamic"`` (flight; motors with a known inertia J, else the step rule applies): the steady-state prediction is passed through the motor's own
-    first-order response (time constant from J and the model, :mod:`..model.dynamics`), measurements are
-    compared with that, and a sample counts as quasi-steady where the response has caught up with the
-    steady state to within ``lag_fraction`` of the speed and current bands.
-
-    ``kind = "balance"`` (flight): no steady state is needed. The model's electrical and mechanical
-    equations are checked as balances at every sample, low-passed with ``residual_tau_s``, and turned
-    into the speed and current deviations they imply in steady state (:mod:`..model.balance`); a sample
-    is judged once the low-passes have had ``settle_s`` of samples without a gap longer than
-    ``max_gap_s`` of the persistence rule. ``activity_tau_s`` is the window of the input activity that
-    widens the bands (the profile's ``activity_band``) and, with
-    ``activity_ref_v`` > 0, lengthens the low-pass to ``residual_tau_s·activity/activity_ref_v`` (at most
-    ``residual_tau_max_s``). ``slow_factor`` > 0 (≥ 1) adds a slow look (balance rule only): the
-    deviations low-passed again with ``slow_factor`` times that time constant, judged ``slow_factor`` ×
-    ``settle_s`` after a step, against the bands narrowed to the profile's ``slow_band_fraction``.
-
-    ``bus_ref_v`` > 0 (balance rule): ``step_v`` and ``activity_ref_v`` are volts at this bus voltage and
-    scale with the vehicle's (a step of 0.8 V at 11.1 V is one of 2.4 V at 33.3 V: the same command
-    change); 0, the default: volts as they are.
-    """
-
-    step_v: float = 0.2
-    settle_s: float = 0.3
-    kind: str = "step"
-    lag_fraction: float = 0.5
-    residual_tau_s: float = 0.0
-    activity_tau_s: float = 0.5
-    activity_ref_v: float = 0.0
-    residual_tau_max_s: float = 2.0
-    slow_factor: float = 0.0
-    bus_ref_v: float = 0.0
-
-    def __post_init__(self) -> None:
-        if not (self.slow_factor == 0 or self.slow_factor >= 1):
-            raise ConfigError(
-                f"{self.slow_factor!r}", key="steady.slow_factor", expected="a factor >= 1, or 0 (off)"
-            )
-        if self.kind == "balance" and not self.residual_tau_s > 0:
-            raise ConfigError(
-                f"{self.residual_tau_s!r}",
-                key="steady.residual_tau_s",
-                expected='a time constant > 0 s for kind = "balance"',
-            )
-        if not self.bus_ref_v >= 0:
-            raise ConfigError(f"{self.bus_ref_v!r}", key="steady.bus_ref_v", expected="a voltage >= 0 V")
-        if not self.activity_tau_s > 0:
-            raise ConfigError(
-                f"{self.activity_tau_s!r}", key="steady.activity_tau_s", expected="a time constant > 0 s"
-            )
-        if not (self.step_v > 0 and self.settle_s >= 0):
-            raise ConfigError(
-                "step_v must be > 0 and settle_s >= 0", key="steady", expected="step_v > 0 V, settle_s >= 0 s"
-            )
-        if self.kind not in STEADY_KINDS:
-            raise ConfigError(
-                f"{self.kind!r}", key="steady.kind", expected=f"one of {', '.join(STEADY_KINDS)}"
-            )
-        if not self.lag_fraction > 0:
-            raise ConfigError(f"{self.lag_fraction!r}", key="steady.lag_fraction", expected="a fraction > 0")
+__all__ = ["PersistenceRule", "ThresholdProfile"]
 
 
 @dataclass(frozen=True)
@@ -207,7 +142,7 @@ class ThresholdProfile:
     noise_bands: float = 0.0
     stall_split_typical: float = 0.0
     range_margin: float = 0.0
-    steady: SteadyRule = field(default_factory=SteadyRule)
+    steady: CompareRule = field(default_factory=StepRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
     vehicle_check: VehicleCheckRule = field(default_factory=VehicleCheckRule)
@@ -263,7 +198,7 @@ class ThresholdProfile:
                 key="noise_bands",
                 expected="a number of the vehicle's noise units between 1 and 50, or 0 (absolute bands)",
             )
-        if self.detection.on and not (self.noise_bands > 0 and self.steady.kind == "balance"):
+        if self.detection.on and not (self.noise_bands > 0 and isinstance(self.steady, BalanceRule)):
             raise ConfigError(
                 f"false_alarms_per_100h = {self.detection.false_alarms_per_100h!r}",
                 key="detection",
@@ -299,6 +234,30 @@ class ThresholdProfile:
             raise ConfigError("voltages must increase", key="current_band_a", expected="increasing voltages")
         if any(not p[1] > 0 for p in band):
             raise ConfigError("half-widths must be > 0 A", key="current_band_a", expected="half-widths > 0 A")
+
+    @cached_property
+    def rules(self) -> tuple[Rule, ...]:
+        """The pipeline's rules in order (:mod:`.rules`): the comparison (``steady``), the sensors, the
+        bands, the pairing, the tree and its slow look, which samples count, the sequential test where
+        the profile has one, persistence. Made once per profile (frozen)."""
+        from .rules.announce import Persistence, Sequential
+        from .rules.bands import Bands
+        from .rules.judged import Judged
+        from .rules.pairing import PairingGuard
+        from .rules.sensors import SensorCheck
+        from .rules.tree import SlowLook, Tree
+
+        return (
+            self.steady,
+            SensorCheck(self.plausibility),
+            Bands(self),
+            PairingGuard(self),
+            Tree(self),
+            SlowLook(self.slow_band_fraction, self.joint_band_sum),
+            Judged(self),
+            *([Sequential(self)] if self.detection.on else []),
+            Persistence(self),
+        )
 
     def current_halfwidth_a(
         self, voltage_v: ArrayLike, activity_v: ArrayLike | None = None, *, below: bool = False

@@ -9,14 +9,24 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..model.dynamics import last_of, previous
-from .profile import SteadyRule
 
 __all__ = ["SteadyCarry", "steady_mask", "steady_mask_rows", "warm_mask", "warm_mask_rows"]
+
+
+class Settling(Protocol):
+    """The settings the steady mask reads (the step and dynamic rules')."""
+
+    @property
+    def step_v(self) -> float: ...
+
+    @property
+    def settle_s(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -31,7 +41,7 @@ class SteadyCarry:
 
 
 def steady_mask(
-    rule: SteadyRule,
+    rule: Settling,
     time_s: NDArray[np.float64],
     voltage_v: NDArray[np.float64],
     carry: SteadyCarry = SteadyCarry(),
@@ -47,7 +57,7 @@ def steady_mask(
 
 
 def steady_mask_rows(
-    rule: SteadyRule,
+    rule: Settling,
     time_s: NDArray[np.float64],
     voltage_v: NDArray[np.float64],
     carries: list[SteadyCarry],

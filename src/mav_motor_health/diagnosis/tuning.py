@@ -48,6 +48,7 @@ from .persistence import run_hold
 from .pipeline import diagnose
 from .plausibility import CURRENT_UNTRUSTED
 from .profile import PersistenceRule, ThresholdProfile
+from .rules import BalanceRule
 from .states import MotorState
 
 __all__ = ["LabelledFlight", "TuneResult", "fault_masks", "tune_profile"]
@@ -280,7 +281,7 @@ def tune_profile(
     res_w, res_i, volts, acts = (np.concatenate(x) for x in (rw, ri, rv, ra))
     if res_w.size < 50:
         raise ValueError(f"only {res_w.size} healthy steady samples: too few to tune bands")
-    fit_activity = base.steady.kind == "balance" and bool(np.any(acts > 0))
+    fit_activity = isinstance(base.steady, BalanceRule) and bool(np.any(acts > 0))
     activity_band: tuple[tuple[float, ...], ...] = ()
     if fit_activity:
         # Bands that widen with the input's activity: widenings per activity bin and side (see
@@ -344,7 +345,7 @@ def tune_profile(
     )
     # 2b. the slow look's share of the bands, from the healthy samples' longer averages
     slow_report: dict[str, Any] = {}
-    if base.steady.kind == "balance" and base.steady.slow_factor > 0:
+    if isinstance(base.steady, BalanceRule) and base.steady.slow_factor > 0:
         fraction, slow_report = _slow_band_fraction(
             [diagnose(f.table, params, profile) for f in flights], masks, quantile, margin, voltage_bins
         )

@@ -1,0 +1,116 @@
+"""From verdicts to announcements: the sequential test on the fault directions (:mod:`..detection`),
+and persistence (:mod:`..persistence`) on the rest (stalls, sensor faults) or on everything."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..detection import DIRECTIONS, SequentialCarry, direction_evidence, sequential_alarms
+from ..persistence import PersistenceCarry, announce
+from ..states import MotorState
+from .base import Frame, Rule
+
+if TYPE_CHECKING:
+    from ..profile import ThresholdProfile
+
+__all__ = ["Persistence", "Sequential"]
+
+#: states the sequential test does not judge (persistence announces them)
+_NOT_DIRECTIONS = (
+    MotorState.F2_1,
+    MotorState.F4_2,
+    MotorState.STALLED,
+    MotorState.SENSOR_FAULT,
+    MotorState.NO_DATA,
+)
+
+
+@dataclass(frozen=True)
+class Sequential(Rule):
+    """A CUSUM per fault direction on the deviations in σ of the motor's noise (``[detection]``): writes
+    ``alarms`` and ``detection_level``, and leaves the directions to it (``announced_elsewhere``)."""
+
+    name = "sequential"
+    profile: ThresholdProfile
+
+    def new_carry(self) -> SequentialCarry:
+        return SequentialCarry()
+
+    def judge(self, frame: Frame, carries: list[SequentialCarry]) -> list[SequentialCarry]:
+        profile = self.profile
+        if frame.low_pass_s is None:
+            raise ValueError(f"profile {profile.name!r}: the sequential test needs a low-passed comparison")
+        sigmas = profile.noise_bands
+        with np.errstate(divide="ignore", invalid="ignore"):
+            evidence = direction_evidence(
+                (frame.omega_judged_rad_s - frame.omega_model_rad_s)
+                / (np.asarray(frame.speed_band_rad_s, dtype=float) / sigmas),
+                (frame.current_judged_a - frame.current_model_a) / (frame.current_band_a / sigmas),
+                frame.current_trusted(),
+                sigmas,
+            )
+        # judged: the steady samples the tree named a motor state on (not a stall, a bad sensor, no data)
+        judged = frame.steady & ~np.isin(frame.state, _NOT_DIRECTIONS)
+        observation_s = 2.0 * frame.low_pass_s
+        t = frame.time_s
+        alarms = np.zeros(t.shape, dtype=np.int8)
+        level = np.full(t.shape, np.nan)
+        new = list(carries)
+        for r, count in enumerate(frame.counts):
+            alarms[r, :count], level[r, :count], new[r] = sequential_alarms(
+                profile.detection,
+                t[r, :count],
+                evidence[:, r, :count],
+                observation_s[r, :count],
+                judged[r, :count],
+                carries[r],
+                profile.persistence.max_gap_s,
+                frame.design_tau_s,
+            )
+        frame.alarms, frame.detection_level = alarms, level
+        frame.announced_elsewhere = tuple(int(d) for d in DIRECTIONS)
+        return new
+
+
+@dataclass(frozen=True)
+class Persistence(Rule):
+    """Writes ``announced``: a state announced once it has held (the profile's ``[persistence]``), the
+    states another rule announces left out; that rule's alarms where persistence announces nothing (a
+    stall, a bad sensor come before a direction)."""
+
+    name = "persistence"
+    profile: ThresholdProfile
+
+    def new_carry(self) -> PersistenceCarry:
+        return PersistenceCarry()
+
+    def judge(self, frame: Frame, carries: list[PersistenceCarry]) -> list[PersistenceCarry]:
+        rule = self.profile.persistence
+        t, state, activity = frame.time_s, frame.state, frame.activity_v
+        rate = np.minimum(frame.depth, rule.max_depth) if rule.max_depth > 1 else None
+        hold_s, hold_per_activity_s = rule.hold_s(), rule.hold_per_activity_s()
+        persisted = state
+        if frame.announced_elsewhere:
+            persisted = np.where(np.isin(state, frame.announced_elsewhere), MotorState.NORMAL, state)
+            persisted = persisted.astype(state.dtype)
+        announced = np.zeros(t.shape, dtype=np.int8)
+        new = list(carries)
+        for r, count in enumerate(frame.counts):
+            announced[r, :count], new[r] = announce(
+                hold_s,
+                t[r, :count],
+                persisted[r, :count],
+                frame.eligible[r, :count],
+                carries[r],
+                rule.max_gap_s,
+                hold_per_activity_s=hold_per_activity_s,
+                activity=None if activity is None else activity[r, :count],
+                rate=None if rate is None else rate[r, :count],
+            )
+        if frame.alarms is not None:
+            announced = np.where(announced == MotorState.NORMAL, frame.alarms, announced).astype(np.int8)
+        frame.announced = announced
+        return new

@@ -1,0 +1,196 @@
+"""The balance rule (flight): no steady state needed.
+
+The model's electrical and mechanical equations are checked as balances at every sample, low-passed with
+``residual_tau_s``, and turned into the speed and current deviations they imply in steady state
+(:mod:`...model.balance`, the equations); a sample is judged once the low-passes have had ``settle_s`` of
+samples without a gap longer than the persistence rule's ``max_gap_s``. ``activity_tau_s`` is the window
+of the input activity that widens the bands (the profile's ``activity_band``) and, with ``activity_ref_v``
+> 0, lengthens the low-pass to ``residual_tau_s·activity/activity_ref_v`` (at most
+``residual_tau_max_s``). ``slow_factor`` > 0 (≥ 1) adds a slow look: the deviations low-passed again with
+``slow_factor`` times that time constant, judged ``slow_factor`` × ``settle_s`` after a step, against the
+bands narrowed to the profile's ``slow_band_fraction`` (:class:`..slow_look.SlowAveragesRule`).
+
+``bus_ref_v`` > 0: ``step_v`` and ``activity_ref_v`` are volts at this bus voltage and scale with the
+vehicle's (a step of 0.8 V at 11.1 V is one of 2.4 V at 33.3 V: the same command change); 0: volts as
+they are.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ...errors import ConfigError
+from ...model.balance import BalanceCarry, balance_deviations_rows
+from ...model.dynamics import ResponseCarry, first_order_responses
+from ..stall import StallCarry, stall_mean_rows
+from ..steady import SteadyCarry, warm_mask_rows
+from .base import CompareRule, Frame, SlowAverages
+
+__all__ = ["BalanceCarry", "BalanceRule", "BalanceRuleCarry"]
+
+
+@dataclass(frozen=True)
+class BalanceRuleCarry:
+    """What the balance rule remembers about one motor."""
+
+    balance: BalanceCarry = field(default_factory=BalanceCarry)
+    steady: SteadyCarry = field(default_factory=SteadyCarry)
+    stall: StallCarry = field(default_factory=StallCarry)
+    slow_omega: ResponseCarry = field(default_factory=ResponseCarry)
+    slow_current: ResponseCarry = field(default_factory=ResponseCarry)
+
+
+@dataclass(frozen=True)
+class BalanceRule(CompareRule):
+    """The balances low-passed with ``residual_tau_s`` [s], judged ``settle_s`` after a step of ``step_v``
+    [V]; see the module."""
+
+    kind = "balance"
+
+    step_v: float = 0.2
+    settle_s: float = 0.3
+    residual_tau_s: float = 0.15
+    activity_tau_s: float = 0.5
+    activity_ref_v: float = 0.0
+    residual_tau_max_s: float = 2.0
+    slow_factor: float = 0.0
+    bus_ref_v: float = 0.0
+
+    def validate(self) -> None:
+        if not (self.step_v > 0 and self.settle_s >= 0):
+            raise ConfigError(
+                "step_v must be > 0 and settle_s >= 0", key="steady", expected="step_v > 0 V, settle_s >= 0 s"
+            )
+        if not self.residual_tau_s > 0:
+            raise ConfigError(
+                f"{self.residual_tau_s!r}",
+                key="steady.residual_tau_s",
+                expected='a time constant > 0 s for kind = "balance"',
+            )
+        if not (self.slow_factor == 0 or self.slow_factor >= 1):
+            raise ConfigError(
+                f"{self.slow_factor!r}", key="steady.slow_factor", expected="a factor >= 1, or 0 (off)"
+            )
+        if not self.bus_ref_v >= 0:
+            raise ConfigError(f"{self.bus_ref_v!r}", key="steady.bus_ref_v", expected="a voltage >= 0 V")
+        if not self.activity_tau_s > 0:
+            raise ConfigError(
+                f"{self.activity_tau_s!r}", key="steady.activity_tau_s", expected="a time constant > 0 s"
+            )
+
+    def new_carry(self) -> BalanceRuleCarry:
+        return BalanceRuleCarry()
+
+    def bus_scale(self, frame: Frame) -> NDArray[np.float64] | float:
+        """What the rule's volts (``step_v``, ``activity_ref_v``) are multiplied by at each sample: the bus
+        voltage over ``bus_ref_v`` where the rule scales with it and the sample has one, else 1."""
+        if not self.bus_ref_v > 0 or frame.bus_voltage_v is None:
+            return 1.0
+        bus = np.broadcast_to(np.asarray(frame.bus_voltage_v, dtype=float), frame.shape)
+        with np.errstate(invalid="ignore"):
+            return np.where(np.isfinite(bus) & (bus > 0), bus / self.bus_ref_v, 1.0)
+
+    def judge(self, frame: Frame, carries: list[BalanceRuleCarry]) -> list[BalanceRuleCarry]:
+        t, v = frame.time_s, frame.voltage_v
+        omega_in, current_in = frame.omega_rad_s, frame.current_a
+        profile, counts, rows = frame.profile, frame.counts, frame.shape[0]
+        command = frame.command
+        # volts of the rule scaled with the vehicle's bus voltage (a 12S vehicle's input moves 3.3 times
+        # the volts of a 3S one for the same command)
+        volts = self.bus_scale(frame)
+        bal, balance_carries = balance_deviations_rows(
+            frame.params,
+            t,
+            v,
+            omega_in,
+            current_in,
+            self.residual_tau_s,
+            self.activity_tau_s,
+            [c.balance for c in carries],
+            counts,
+            activity_ref_v=self.activity_ref_v * volts,
+            tau_max_s=self.residual_tau_max_s,
+            input_current_a=frame.sensor_current_a if command is not None else None,
+            duty=command if frame.sensor_current_a is not None else None,
+        )
+        omega_pred, current_pred = bal.omega_model_rad_s, bal.current_model_a
+        # A stalled motor: the speed itself (the lower of the sample and its low-pass, so that a
+        # start-up kick does not break the run and the first slow sample counts), and the current
+        # averaged since the stall began (diagnosis/stall.py: the low-pass still holds the flight's).
+        stall_speed = np.fmin(omega_in, bal.omega_mean_rad_s)
+        stop_speed = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * omega_pred)
+        stalled_like = stall_speed < stop_speed
+        omega_seen = np.where(stalled_like, stall_speed, omega_pred + bal.delta_omega_rad_s)
+        omega_seen = np.where(np.isfinite(omega_in), omega_seen, np.nan)
+        stall_current, stall_carries = stall_mean_rows(
+            current_in, stalled_like, [c.stall for c in carries], frame.ragged
+        )
+        current_seen = np.where(stalled_like, stall_current, current_pred + bal.delta_current_a)
+        current_seen = np.where(np.isfinite(current_in), current_seen, np.nan)
+        # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air
+        # is no step at all) puts two operating points into the low-passes: judge after settle_s. A new
+        # stream (the first sample, or after a gap) waits until the activity is known too.
+        step_v = self.step_v * volts + 3.0 * np.nan_to_num(bal.zigzag_v)  # the jumps as measured, not scaled
+        # A motor whose low-passed input is at idle (below min_command: spin-down, braking with its current
+        # unread) restarts the wait: when it comes back the low-passes still hold the idle. The low-passed
+        # input, not the sample: in gusty air single commands dip to idle and back all the time.
+        at_idle = None
+        if command is not None and profile.min_command > 0:
+            cmd = np.asarray(command, dtype=float)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bus_v = np.where(cmd > 0.05, v / cmd, np.nan)  # the input is command × bus voltage
+            at_idle = bal.voltage_v < profile.min_command * bus_v
+        slow_on = self.slow_factor > 0
+        warm, settled = warm_mask_rows(
+            t,
+            v,
+            self.settle_s,
+            profile.persistence.max_gap_s,
+            step_v,
+            [c.steady for c in carries],
+            counts,
+            # the activity's low-pass has to fill up first, and the deviations' (longer in gusts)
+            start_settle_s=np.maximum(3.0 * self.activity_tau_s, 3.0 * bal.tau_s),
+            restart=at_idle,
+            also_settle_s=self.slow_factor * self.settle_s if slow_on else None,
+        )
+        if slow_on:
+            warm, slow_warm = warm[0], warm[1]
+        steady = warm & np.isfinite(v) & np.isfinite(omega_in)
+        slow_carries = [c.slow_omega for c in carries] + [c.slow_current for c in carries]
+        if slow_on:
+            # The slow look: the deviations averaged slow_factor times longer, judged as long after a step
+            slow_both, slow_carries = first_order_responses(
+                t,
+                np.concatenate([bal.delta_omega_rad_s, bal.delta_current_a]),
+                self.slow_factor * bal.tau_s,
+                slow_carries,
+                counts * 2,
+            )
+            # only where the low-pass is not already lengthened by the activity (calm air): in gusts the
+            # fast look averages long already, and a slower one would hold every gust's upset for seconds
+            calm = bal.tau_s <= self.residual_tau_s
+            frame.slow = SlowAverages(
+                slow_both[:rows], slow_both[rows:], slow_warm & steady & ~stalled_like & calm
+            )
+        frame.omega_model_rad_s, frame.current_model_a = omega_pred, current_pred
+        frame.omega_judged_rad_s, frame.current_judged_a = omega_seen, current_seen
+        frame.steady = steady
+        frame.judged_voltage_v = bal.voltage_v
+        frame.activity_v = bal.activity_v
+        frame.omega_expected_rad_s = omega_pred
+        # No fault turns the motor faster than V/k_e (tree rule 2), but the balance rule judges the model
+        # plus a low-passed deviation, not a measured speed: its band is the deviation's noise, which the
+        # physical cap does not bound, so it keeps the full band.
+        frame.omega_free_rad_s = None
+        frame.low_pass_s = bal.tau_s
+        frame.design_tau_s = self.residual_tau_s
+        return [
+            BalanceRuleCarry(
+                balance_carries[r], settled[r], stall_carries[r], slow_carries[r], slow_carries[rows + r]
+            )
+            for r in range(rows)
+        ]

@@ -1,0 +1,217 @@
+"""What every diagnosis rule is: a frozen config with one ``judge()`` that reads and adds to a frame.
+
+The pipeline (:mod:`..pipeline`) is a loop over rules. A rule is a frozen dataclass subclassing
+:class:`Rule`: its fields are its settings (defaults on the dataclass, checked by :meth:`Rule.validate`
+when it is made), :meth:`Rule.new_carry` is what it remembers about one motor before its first sample,
+and :meth:`Rule.judge` advances every motor of one call: it reads the :class:`Frame` (the call's samples
+and what the rules before it found), writes what it finds to the frame, and returns each motor's new
+carry. Rules look back only, so a split of a motor's samples into calls gives the same results.
+
+The rules that compare a motor with its model (step, dynamic, balance) are :class:`CompareRule`\\ s: a
+profile's ``[steady]`` table names one by its ``kind``, and a new way of comparing is a new module with a
+new kind (:func:`compare_rule`; another package installs one under the entry-point group
+``mav_motor_health.rules``). docs/rules.md shows how.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, fields
+from importlib import metadata
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ...errors import ConfigError
+from ...model.params import MotorParams
+from ..plausibility import CURRENT_UNTRUSTED
+
+if TYPE_CHECKING:
+    from ..noise import BandNoise
+    from ..profile import ThresholdProfile
+
+__all__ = [
+    "COMPARE_RULES",
+    "CompareRule",
+    "Frame",
+    "Rule",
+    "SlowAverages",
+    "check_settings",
+    "compare_rule",
+    "compare_rule_class",
+]
+
+
+@dataclass
+class SlowAverages:
+    """The balance rule's slower averages of the deviations, and where they may be judged."""
+
+    delta_omega_rad_s: NDArray[np.float64]
+    delta_current_a: NDArray[np.float64]
+    ready: NDArray[np.bool_]
+
+
+@dataclass
+class Frame:
+    """One call's samples of several motors of one model (rows × samples, one row per motor; ``counts``
+    each row's samples, the rest padding) and what the rules have found so far.
+
+    The inputs come first; each rule fills in the fields it documents. Arrays are 2-D of the rows' shape.
+    """
+
+    params: MotorParams
+    profile: ThresholdProfile
+    time_s: NDArray[np.float64]
+    voltage_v: NDArray[np.float64]
+    omega_rad_s: NDArray[np.float64]
+    current_a: NDArray[np.float64]
+    counts: list[int]
+    #: each row's length where rows differ (None: all full), as the kernels take it
+    ragged: list[int] | None = None
+    bus_voltage_v: NDArray[np.float64] | None = None
+    command: NDArray[np.float64] | None = None
+    sensor_current_a: NDArray[np.float64] | None = None
+    extra_flags: NDArray[np.int16] | None = None
+    context: Mapping[str, NDArray[np.float64]] | None = None
+    pairing_s: float | None = None
+    noise: Sequence[BandNoise] | None = None
+
+    # the comparison (a CompareRule)
+    omega_model_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
+    current_model_a: NDArray[np.float64] = None  # type: ignore[assignment]
+    #: the measurement as the tree judges it (the model plus a low-passed deviation, or a stall's own)
+    omega_judged_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
+    current_judged_a: NDArray[np.float64] = None  # type: ignore[assignment]
+    steady: NDArray[np.bool_] = None  # type: ignore[assignment]
+    #: the input voltage the bands and the tree are read at
+    judged_voltage_v: NDArray[np.float64] = None  # type: ignore[assignment]
+    #: the speed the motor is expected to turn at (tree rule 1)
+    omega_expected_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
+    #: the motor's free speed V/k_e, above which no fault turns it (tree rule 2); None: no cap
+    omega_free_rad_s: NDArray[np.float64] | None = None
+    #: the input activity [V] that widens the bands (balance rule); None: none measured
+    activity_v: NDArray[np.float64] | None = None
+    #: the deviations' low-pass time constant [s] (balance rule), which the pairing and the sequential
+    #: test read; None: the rule has none that moves
+    low_pass_s: NDArray[np.float64] | None = None
+    #: the balance rule's slow look; None: off
+    slow: SlowAverages | None = None
+    #: the low-pass time constant the rule was designed at [s] (the sequential test's design)
+    design_tau_s: float = 0.0
+
+    # the checks and bands
+    sensor_flags: NDArray[np.int16] = None  # type: ignore[assignment]
+    speed_band_rad_s: NDArray[np.float64] | float = 0.0
+    current_band_a: NDArray[np.float64] = None  # type: ignore[assignment]
+    current_band_below_a: NDArray[np.float64] = None  # type: ignore[assignment]
+    pairing_error_rad_s: NDArray[np.float64] | None = None
+
+    # the verdicts
+    state: NDArray[np.int8] = None  # type: ignore[assignment]
+    depth: NDArray[np.float64] = None  # type: ignore[assignment]
+    #: samples whose state persistence may count (steady, or a state named whatever the input)
+    eligible: NDArray[np.bool_] = None  # type: ignore[assignment]
+    #: states a later rule announces (the sequential test's directions): persistence leaves them out
+    announced_elsewhere: tuple[int, ...] = ()
+    #: the sequential test's alarms and level, where a profile has one
+    alarms: NDArray[np.int8] | None = None
+    detection_level: NDArray[np.float64] | None = None
+    announced: NDArray[np.int8] = None  # type: ignore[assignment]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.time_s.shape
+
+    def current_trusted(self) -> NDArray[np.bool_]:
+        """Where the current may be used: a plausible sensor and a measurement."""
+        return ((self.sensor_flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(self.current_a)
+
+
+class Rule(ABC):
+    """A diagnosis rule: frozen settings, checked when made; one :meth:`judge` with its own carry."""
+
+    #: the rule's name: its key in a motor's carry
+    name: ClassVar[str]
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:  # noqa: B027 (a hook: rules without settings to check keep it)
+        """Refuse settings the rule cannot work with (a :class:`ConfigError` naming the key)."""
+
+    def new_carry(self) -> Any:
+        """What the rule remembers about a motor before its first sample (None: nothing)."""
+        return None
+
+    @abstractmethod
+    def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
+        """Advance every row of ``frame`` (writing what the rule finds into it); each row's new carry."""
+
+
+#: the comparison rules by kind (:func:`compare_rule`)
+COMPARE_RULES: dict[str, type[CompareRule]] = {}
+
+
+class CompareRule(Rule):
+    """A rule comparing a motor with its model: fills the frame's comparison fields (the model, the
+    measurement as judged, ``steady``...). Subclasses name their ``kind`` (the ``[steady]`` table's)."""
+
+    kind: ClassVar[str]
+    name: ClassVar[str] = "compare"
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "kind" in cls.__dict__:
+            COMPARE_RULES[cls.kind] = cls
+
+
+#: the entry-point group under which other packages install comparison rules (a CompareRule subclass)
+ENTRY_POINT_GROUP = "mav_motor_health.rules"
+
+
+def compare_rule_class(kind: str) -> type[CompareRule]:
+    """The comparison rule of ``kind``: the package's, one defined (imported) by the user, or one installed
+    under the entry-point group ``mav_motor_health.rules``, looked for when the kind is not known yet
+    (a :class:`ConfigError` naming the kinds there are)."""
+    if kind not in COMPARE_RULES:
+        for entry in metadata.entry_points(group=ENTRY_POINT_GROUP):
+            try:
+                entry.load()  # a CompareRule subclass registers its kind when defined
+            except Exception as exc:
+                raise ConfigError(
+                    f"entry point {entry.name!r} failed to load: {type(exc).__name__}: {exc}",
+                    key="steady.kind",
+                ) from exc
+    try:
+        return COMPARE_RULES[kind]
+    except KeyError:
+        raise ConfigError(
+            f"{kind!r}", key="steady.kind", expected=f"one of {', '.join(COMPARE_RULES)}"
+        ) from None
+
+
+def check_settings(kind: str, names: Iterable[str]) -> None:
+    """Refuse a setting that the comparison rule of ``kind`` does not have, naming the kinds that have it
+    (a profile written for another kind, or by an older version that wrote every kind's settings)."""
+    known = {f.name for f in fields(compare_rule_class(kind))}  # type: ignore[arg-type]
+    for name in names:
+        if name in known:
+            continue
+        others = [k for k, c in COMPARE_RULES.items() if name in {f.name for f in fields(c)}]  # type: ignore[arg-type]
+        belongs = (
+            f"; {name} is a setting of kind = {' or '.join(map(repr, others))}: remove it" if others else ""
+        )
+        raise ConfigError(
+            f"{name} is not a setting of kind = {kind!r}",
+            key=f"steady.{name}",
+            expected=f"only the settings of kind = {kind!r} ({', '.join(sorted(known))}){belongs}",
+        )
+
+
+def compare_rule(kind: str = "step", **settings: Any) -> CompareRule:
+    """The comparison rule of ``kind`` with its settings (a profile's ``[steady]`` table; the rest keep the
+    rule's defaults)."""
+    check_settings(kind, settings)
+    return compare_rule_class(kind)(**settings)
