@@ -75,7 +75,7 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ("[profile]\nspeed_band_rad_s = -2\n", "profile.speed_band_rad_s"),
         ('[persistence.announce_s]\n"F9.9" = 0.2\n', "persistence.announce_s.F9.9"),
         ("[steady]\nsettle = 0.2\n", "steady.settle"),  # named: not a setting of the step rule
-        ("[steady]\nkind = \"balance\"\nlag_fraction = 1.0\n", "steady.lag_fraction"),  # the dynamic rule's
+        ('[steady]\nkind = "balance"\nlag_fraction = 1.0\n', "steady.lag_fraction"),  # the dynamic rule's
         ("[profile]\nfree_speed_headroom_fraction = -0.5\n", "profile.free_speed_headroom_fraction"),
         ("[profile]\nfree_speed_headroom_fraction = 1.5\n", "profile.free_speed_headroom_fraction"),
         ('[profile]\nfree_speed_headroom_fraction = "half"\n', "profile.free_speed_headroom_fraction"),
