@@ -29,6 +29,29 @@ def test_ardupilot_esc_telemetry_becomes_samples_with_the_servo_function_mapping
     a.feed(decoded(MAV.param_value_encode(b"SERVO1_FUNCTION", 34, 9, 1, 0)), 0.0)  # output 1 drives motor 2
     a.feed(decoded(MAV.param_value_encode(b"SERVO2_FUNCTION", 33, 9, 1, 1)), 0.0)
     a.feed(servo([1600, 1500, 1500, 1500, 1500, 1500]), 0.0)
+
+    def esc(count: int):
+        return decoded(
+            MAV.esc_telemetry_1_to_4_encode(
+                [30] * 4, [1200] * 4, [300, 250, 250, 250], [0] * 4, [6000] * 4, [count] * 4
+            )
+        )
+
+    samples = {s.motor: s for s in a.feed(esc(1), 0.5)}
+    assert set(samples) == {1, 2, 3, 4}
+    s2 = samples[2]  # ESC slot 0 = output 1 = motor 2, throttle 0.6
+    assert s2.time_s == 0.5 and s2.throttle == pytest.approx(0.6)
+    assert s2.omega_rad_s == pytest.approx(6000 * mavlink_esc.RPM_TO_RAD_S)
+    assert s2.voltage_v == pytest.approx(0.6 * 12.0) and s2.current_a == pytest.approx(3.0 / 0.6)
+    assert samples[1].throttle == pytest.approx(0.5)
+
+
+def test_a_command_older_than_a_second_is_not_paired_as_in_replay():
+    """1.5 s after the last SERVO_OUTPUT_RAW the command stream has stopped: the sample keeps its speed and
+    ESC readings, but its command, motor voltage and motor current are unknown (replay's table says the
+    same: commands older than assemble.COMMAND_MAX_AGE_S are none)."""
+    a = SampleAssembler(motors=6)
+    a.feed(servo([1600, 1500, 1500, 1500, 1500, 1500]), 0.0)
     msg = decoded(
         MAV.esc_telemetry_1_to_4_encode(
             [30] * 4, [1200] * 4, [300, 250, 250, 250], [0] * 4, [6000] * 4, [1] * 4
@@ -36,11 +59,19 @@ def test_ardupilot_esc_telemetry_becomes_samples_with_the_servo_function_mapping
     )
     samples = {s.motor: s for s in a.feed(msg, 1.5)}
     assert set(samples) == {1, 2, 3, 4}
-    s2 = samples[2]  # ESC slot 0 = output 1 = motor 2, throttle 0.6
-    assert s2.time_s == 1.5 and s2.throttle == pytest.approx(0.6)
-    assert s2.omega_rad_s == pytest.approx(6000 * mavlink_esc.RPM_TO_RAD_S)
-    assert s2.voltage_v == pytest.approx(0.6 * 12.0) and s2.current_a == pytest.approx(3.0 / 0.6)
-    assert samples[1].throttle == pytest.approx(0.5)
+    s1 = samples[1]
+    assert s1.time_s == 1.5 and s1.omega_rad_s == pytest.approx(6000 * mavlink_esc.RPM_TO_RAD_S)
+    assert s1.esc_current_a == pytest.approx(3.0) and s1.bus_voltage_v == pytest.approx(12.0)
+    assert math.isnan(s1.throttle) and math.isnan(s1.voltage_v) and math.isnan(s1.current_a)
+    # a fresh command pairs again
+    a.feed(servo([1700] * 6), 1.6)
+    msg = decoded(
+        MAV.esc_telemetry_1_to_4_encode(
+            [30] * 4, [1200] * 4, [300, 250, 250, 250], [0] * 4, [6000] * 4, [2] * 4
+        )
+    )
+    (s1, *_) = a.feed(msg, 1.7)
+    assert s1.throttle == pytest.approx(0.7) and s1.voltage_v == pytest.approx(0.7 * 12.0)
 
 
 def test_a_silent_esc_repeating_its_values_and_an_empty_slot_give_no_samples():
@@ -79,7 +110,7 @@ def test_px4_esc_status_and_battery_fallback():
     ).pack(px4)
     msg = mavlink2.MAVLink(None, 0, 0).parse_buffer(buf)[0]
     assert msg.get_type() == "ESC_STATUS"
-    samples = {s.motor: s for s in a.feed(msg, 3.0)}
+    samples = {s.motor: s for s in a.feed(msg, 0.5)}  # the command is 0.5 s old (at most 1 s)
     assert set(samples) == {5, 6}  # ESCs 5-8 in this message; 7 and 8 are beyond the hexacopter
     assert samples[5].bus_voltage_v == pytest.approx(15.8)  # ESC reports no voltage: the battery's
     assert samples[5].current_a == pytest.approx(4.0)

@@ -5,9 +5,10 @@ call, then ``assemble.motor_table``), and decoded by pymavlink and fed to the ag
 ``SampleAssembler`` in small batches of varying size (the live link's path). The tables must agree
 column by column on every fresh sample, through a parameter change, a silent ESC, empty ESC slots, an ESC
 without voltage sensing, servo outputs 9-16 (MAVLink 2 extensions and MAVLink 1's port 1), PX4's
-ESC_STATUS and the battery messages and their "not measured" values. (The pairing with commands and
-battery differs where a value is old or "not measured" after a reading: replay's table leaves it out, the
-agent holds the last one; the scenarios stay clear of that, the last test shows it.)
+ESC_STATUS and the battery messages and their "not measured" values. Both pair the samples with commands
+and battery by one rule (``assemble.HeldValues``: the last value at or before the sample's time, none
+older than 1 s for commands, 5 s for the battery; a "not measured" is the latest word), replay on the
+whole log, the agent batch by batch; tests/replay/test_pairing.py splits the batches everywhere.
 """
 
 from __future__ import annotations
@@ -305,7 +306,7 @@ def test_the_reader_gives_the_same_reading_whole_or_in_batches() -> None:
 
 def test_battery_sentinels_are_no_reading(tmp_path: Path) -> None:
     """UINT16_MAX (and 0) volts and a negative current (-1: not measured) are NaN in the reading; the
-    table holds the latest message's values (NaN included), the agent the latest reading."""
+    table and the agent hold the latest message's values (NaN included)."""
     sys_status = [
         V2.sys_status_encode(0, 0, 0, 0, 15000, 800, -1, 0, 0, 0, 0, 0, 0),
         V2.sys_status_encode(0, 0, 0, 0, 0xFFFF, -1, -1, 0, 0, 0, 0, 0, 0),
@@ -325,14 +326,14 @@ def test_battery_sentinels_are_no_reading(tmp_path: Path) -> None:
     reading = MessageReader().read(columns_from_messages(received))
     np.testing.assert_array_equal(reading.battery_voltage_v, [np.nan, 8.1])
     assert np.isnan(reading.battery_current_a).all()
-    # the agent: a "not measured" leaves the previous reading in force
+    # the agent: a "not measured" after a reading is no value (NaN until the next reading), as in replay
     assembler = SampleAssembler(motors=4)
     for k, m in enumerate(sys_status[:2]):
         assembler.add(mav2.MAVLink(None, 0, 0).parse_buffer(m.pack(V2))[0], 0.1 * k)
     esc = esc_message(0, [5000] * 4, [0] * 4, [100] * 4, [30] * 4, [1] * 4)
     (sample, *_) = assembler.feed(mav2.MAVLink(None, 0, 0).parse_buffer(esc)[0], 0.25)
-    assert sample.bus_voltage_v == 15.0 and sample.battery_current_a == 8.0
-    # replay: the table holds the latest message, "not measured" included (NaN until the next reading)
+    assert math.isnan(sample.bus_voltage_v) and math.isnan(sample.battery_current_a)
+    # replay: the table holds the latest message, "not measured" included
     frames = [(T0_US + 100_000 * k, m.pack(V2)) for k, m in enumerate(sys_status[:2])]
     frames.append((T0_US + 250_000, esc))
     table = read_tlog(write_tlog(frames, tmp_path / "sentinel.tlog"))
@@ -366,3 +367,116 @@ def test_outputs_9_to_16_battery_cells_and_px4_scaling(tmp_path: Path) -> None:
     np.testing.assert_allclose(rows["esc_current_a"], 3.75)
     np.testing.assert_allclose(rows["bus_voltage_v"], 15.9, rtol=1e-7)  # float32 on the wire
     assert np.isnan(rows["esc_temp_c"]).all()
+
+
+# -- pairing: one rule, whole log or batches ------------------------------------------------------------
+SLOW_TICK_US = 50_000  # 20 Hz: a small stream, cut at every message below
+
+
+def stale_command_and_battery_hexa() -> Frames:
+    """A hexacopter at 20 Hz for 12.5 s whose streams stop: SERVO_OUTPUT_RAW silent for 1.5 s from 4 s (the
+    last 0.5 s of ESC samples have a command older than 1 s), SYS_STATUS silent for 6.5 s from 6 s (ESC 4
+    measures no voltage: its bus voltage comes from the battery, stale after 5 s), the battery's current
+    "not measured" for a second after readings and its voltage "no reading" for a moment. A command comes
+    at the ESC message's own stamp before it on even ticks, 7 ms before it on odd ones."""
+    frames: Frames = [(T0_US, V2.heartbeat_encode(2, 3, 128 | 1, 0, 4).pack(V2))]
+    for output in range(1, 7):
+        frames.append((T0_US + output, param(f"SERVO{output}_FUNCTION", 32 + output)))
+    for k in range(250):
+        stamp = T0_US + 1_000_000 + k * SLOW_TICK_US
+        if not 60 <= k < 90:
+            pwm = [1300 + 40 * m + (7 * k) % 90 for m in range(6)]
+            frames.append((stamp - (k % 2) * 7000, V2.servo_output_raw_encode(k, 0, *pwm, 0, 0).pack(V2)))
+        if k % 2 == 0 and not 100 <= k < 230:
+            volts_mv = 0 if 40 <= k < 46 else 15800 - 3 * k  # 0: no reading
+            current = -1 if 20 <= k < 40 else 1500 + k  # -1: not measured
+            frames.append(
+                (stamp, V2.sys_status_encode(0, 0, 0, 0, volts_mv, current, -1, 0, 0, 0, 0, 0, 0).pack(V2))
+            )
+        rpm = [3000 + 100 * e + 7 * k for e in range(6)] + [0, 0]
+        cv = [0 if e == 3 else 1580 - k // 10 for e in range(6)] + [0, 0]
+        ca = [300 + 10 * e + k % 13 for e in range(6)] + [0, 0]
+        count = [k + 1] * 6 + [0, 0]
+        for first in (0, 4):
+            sl = slice(first, first + 4)
+            frames.append((stamp, esc_message(first, rpm[sl], cv[sl], ca[sl], [30] * 4, count[sl])))
+    return frames
+
+
+def batched_columns(received: list[tuple[float, Any]], cuts: list[int]) -> dict[str, np.ndarray]:
+    """The agent's path on decoded messages, a batch between consecutive ``cuts`` (message indices)."""
+    assembler = SampleAssembler(motors=6)
+    parts = []
+    for start, end in zip([0, *cuts], [*cuts, len(received)]):
+        for t, msg in received[start:end]:
+            assembler.add(msg, t)
+        parts.append(assembler.take())
+    return {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
+
+
+def assert_same_columns(got: dict[str, np.ndarray], want: dict[str, np.ndarray], what: str) -> None:
+    assert got.keys() == want.keys()
+    for name in want:
+        np.testing.assert_array_equal(got[name], want[name], err_msg=f"{what}: {name}")
+
+
+def test_stale_commands_and_battery_pair_alike_in_replay_and_live_cut_anywhere(tmp_path: Path) -> None:
+    """Replay's table and the agent's samples of the same messages are equal column by column, the agent's
+    messages read in one batch, one by one, or in two batches cut at every place in the stream — between a
+    command and the ESC message that uses it, inside the command and battery gaps. A command older than
+    1 s is no command (throttle, motor voltage and current NaN), a battery message older than 5 s no
+    battery value, a "not measured" the latest word."""
+    frames = stale_command_and_battery_hexa()
+    table = read_tlog(write_tlog(frames, tmp_path / "stale.tlog"))
+    received = decoded(frames)
+    whole = batched_columns(received, [])
+    for motor in table.motors():
+        ref, mine = table.for_motor(motor), whole["motor"] == motor
+        for name in LIVE_COLUMNS:
+            np.testing.assert_array_equal(whole[name][mine], ref[name], err_msg=f"motor {motor} {name}")
+    # what the scenario is for: samples with a stale command, with a stale battery, with "not measured"
+    tick = np.round((whole["time_s"] - 1.0) * 1e6 / SLOW_TICK_US).astype(int)
+    stale_command = (tick >= 79) & (tick < 90)  # the last command at tick 59 - 7 ms: 1.007 s before tick 79
+    assert stale_command.sum() == 6 * 11 and np.isnan(whole["throttle"][stale_command]).all()
+    assert np.isnan(whole["voltage_v"][stale_command]).all()
+    assert np.isnan(whole["current_a"][stale_command]).all()
+    assert np.isfinite(whole["omega_rad_s"][stale_command]).all()
+    assert np.isfinite(whole["throttle"][~stale_command]).all()
+    stale_battery = (tick >= 199) & (tick < 230)  # the last SYS_STATUS at tick 98: 5.05 s before tick 199
+    assert np.isnan(whole["battery_voltage_v"][stale_battery]).all()
+    assert np.isnan(whole["bus_voltage_v"][stale_battery & (whole["motor"] == 4)]).all()
+    no_voltage = (tick >= 40) & (tick < 46)
+    assert np.isfinite(whole["battery_voltage_v"][~stale_battery & ~no_voltage]).all()
+    assert np.isnan(whole["battery_current_a"][(tick >= 20) & (tick < 40)]).all()  # not measured
+    # batches: one message each, and two batches cut at every place
+    assert_same_columns(batched_columns(received, list(range(1, len(received)))), whole, "one by one")
+    kinds = [msg.get_type() for _, msg in received]
+    between = [
+        k for k in range(1, len(kinds)) if kinds[k - 1] == "SERVO_OUTPUT_RAW" and kinds[k].startswith("ESC")
+    ]
+    assert len(between) > 100  # a cut between a command and the ESC message that uses it
+    # every one of those, every fourth place, every place around where the command or battery goes stale
+    # or comes back
+    times = np.array([t for t, _ in received])
+    edges = 1.0 + SLOW_TICK_US / 1e6 * np.array([59, 79, 90, 98, 199, 230])
+    near = np.flatnonzero((np.abs(times[:, None] - edges) < 0.12).any(axis=1))
+    cuts = sorted({*between, *range(1, len(received), 4), *near[near > 0].tolist()})
+    for cut in cuts:
+        assert_same_columns(batched_columns(received, [cut]), whole, f"cut at message {cut}")
+
+
+def test_a_command_stamped_with_the_sample_but_after_it(tmp_path: Path) -> None:
+    """Where rule and batching meet: a command with the ESC message's own time counts (at or before the
+    sample's time) even if it came after the ESC message — in replay, and live when both come in the same
+    batch (the agent's link stamps all messages of one read alike and never splits a read). Only a batch
+    boundary between them, with equal times, leaves the agent the command before (it had not come)."""
+    frames: Frames = [(T0_US, V2.heartbeat_encode(2, 3, 128 | 1, 0, 4).pack(V2))]
+    frames.append((T0_US + 10_000, V2.servo_output_raw_encode(0, 0, *([1500] * 8)).pack(V2)))
+    stamp = T0_US + 30_000
+    frames.append((stamp, esc_message(0, [5000] * 4, [1600] * 4, [400] * 4, [30] * 4, [1] * 4)))
+    frames.append((stamp, V2.servo_output_raw_encode(1, 0, *([1600] * 8)).pack(V2)))
+    table = read_tlog(write_tlog(frames, tmp_path / "tie.tlog"))
+    np.testing.assert_allclose(table["throttle"], 0.6)
+    received = decoded(frames)
+    np.testing.assert_allclose(batched_columns(received, [])["throttle"], 0.6)
+    np.testing.assert_allclose(batched_columns(received, [3])["throttle"], 0.5)

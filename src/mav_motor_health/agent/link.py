@@ -364,6 +364,7 @@ class MavlinkLink:
         self.opened.set()
         pos = 0
         origin_us: int | None = None
+        last_us = -1
         batch: list[Received] = []
         while pos + 9 <= len(data) and not self._stop.is_set():
             (stamp_us,) = struct.unpack_from(">Q", data, pos)
@@ -380,10 +381,13 @@ class MavlinkLink:
             pos += 8 + size
             if origin_us is None:
                 origin_us = stamp_us  # seconds from the first record, as the log readers count them
-            batch.extend(Received((stamp_us - origin_us) / 1e6, msg) for msg in self._parse(parser, frame))
-            if len(batch) >= 200:
+            if len(batch) >= 200 and stamp_us != last_us:
+                # batches end between two time stamps, never inside one: replay pairs a sample with a
+                # command stamped at the same time whatever their order, and so must the batches
                 self._deliver(batch, wait=True)
                 batch = []
+            last_us = stamp_us
+            batch.extend(Received((stamp_us - origin_us) / 1e6, msg) for msg in self._parse(parser, frame))
         if batch:
             self._deliver(batch, wait=True)
         self._deliver(None, wait=True)

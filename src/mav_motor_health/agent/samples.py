@@ -2,11 +2,13 @@
 
 :class:`SampleAssembler` keeps the messages that came since the last call (the agent: one batch of its
 link) and hands them, as columns, to :class:`~mav_motor_health.telemetry.mavlink_messages.MessageReader`
-— the reading replay gives a whole .tlog — then pairs each ESC row with its motor's latest command and
-the battery (:class:`~mav_motor_health.telemetry.mavlink_messages.SamplePairing`). What comes out is the
-telemetry table's columns for the fresh samples: a repeated or empty ESC slot is no sample (a silent ESC
-yields none, and the monitor declares it ``NO_DATA``). No I/O here: messages are anything with
-pymavlink's attributes and ``get_type()``.
+— the reading replay gives a whole .tlog — then pairs each ESC row with its motor's command and the
+battery by replay's rule (:class:`~mav_motor_health.telemetry.mavlink_messages.SamplePairing`: the last
+value at or before the sample's time, none older than 1 s for commands, 5 s for the battery, carried
+from batch to batch). What comes out is the telemetry table's columns for the fresh samples: a repeated
+or empty ESC slot is no sample (a silent ESC yields none, and the monitor declares it ``NO_DATA``); a
+sample whose command is stale has no throttle, motor voltage or motor current (NaN), as in replay's
+table. No I/O here: messages are anything with pymavlink's attributes and ``get_type()``.
 """
 
 from __future__ import annotations

@@ -11,11 +11,13 @@ The ESC reports its input current (``esc_current_a``, kept as the sensor's readi
 and current follow from the command with :func:`.mavlink_esc.motor_inputs`, the very function the live
 agent uses, so a replayed log and the same flight streamed live give the same table.
 
-Commands and context are aligned to each ESC sample by previous-value hold (the last value at or before
-the sample), so no value from the future is ever used — the same view the live agent has. The table's
-``meta`` says how closely the samples are paired with their commands (``command_age_s``, the held
-command's age, 95th percentile; ``pairing_s``, the larger of that and the reader's
-``sample_time_uncertainty_s``).
+Commands and context are paired with each ESC sample by previous-value hold (:class:`HeldValues`: the
+last value at or before the sample's time, none older than :data:`COMMAND_MAX_AGE_S` for commands,
+:data:`CONTEXT_MAX_AGE_S` for context), so no value from the future is ever used. The live agent pairs
+its samples with the same class, fed batch by batch (:class:`.mavlink_messages.SamplePairing`): a
+streamed flight and its replayed .tlog give the same table. The table's ``meta`` says how closely the
+samples are paired with their commands (``command_age_s``, the held command's age, 95th percentile;
+``pairing_s``, the larger of that and the reader's ``sample_time_uncertainty_s``).
 """
 
 from __future__ import annotations
@@ -26,14 +28,23 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..errors import DataError
 from . import mavlink_esc
-from ._logscan import hold_previous
 from .table import TelemetryTable
 
-__all__ = ["COMMAND_MAX_AGE_S", "CONTEXT_MAX_AGE_S", "EscSamples", "Series", "motor_table", "no_esc_error"]
+__all__ = [
+    "COMMAND_MAX_AGE_S",
+    "CONTEXT_MAX_AGE_S",
+    "EscSamples",
+    "HeldValues",
+    "Series",
+    "bus_voltage_or_battery",
+    "held",
+    "motor_table",
+    "no_esc_error",
+]
 
 #: A motor command older than this is not used for a sample (the output stream stopped).
 COMMAND_MAX_AGE_S = 1.0
@@ -74,12 +85,100 @@ class EscSamples:
 MAX_ESC_SLOTS = 32
 
 
-def _sorted_series(series: Series) -> Series:
-    t, v = np.asarray(series[0], dtype=float), np.asarray(series[1], dtype=float)
-    if len(t) > 1 and np.any(np.diff(t) < 0):
-        order = np.argsort(t, kind="stable")
-        t, v = t[order], v[order]
-    return t, v
+class HeldValues:
+    """Previous-value hold by time of ``signals`` signals whose values come in parts (a log: all at once;
+    the live agent: batch by batch): each target time gets each signal's last value at or before it (one
+    at the very same time included), none older than ``max_age_s``.
+
+    What earlier parts said is carried (each signal's last value and its time), so parts whose times do
+    not go back give what the whole gives, wherever they are split — except that a value stamped at the
+    same time as a target but coming in a later part is not seen (it had not come).
+    """
+
+    def __init__(self, signals: int, max_age_s: float) -> None:
+        self.max_age_s = max_age_s
+        self._signals = np.arange(signals)
+        #: each signal's last value and its time (NaN: none yet)
+        self.time_s = np.full(signals, np.nan)
+        self.value = np.full(signals, np.nan)
+
+    def hold(
+        self,
+        source_time_s: ArrayLike,
+        values: ArrayLike,
+        target_time_s: ArrayLike,
+        signal: ArrayLike | None = None,
+        present: NDArray[np.bool_] | None = None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The held value at each target time and its age [s] (both NaN where none is held); then the part's
+        last values are carried to the next call.
+
+        ``values`` has a row per source time (in any order: sorted here, stably) and a column per signal;
+        ``present`` marks the entries that are values (default: all, NaN included: a "no reading" is the
+        latest word). ``signal`` gives each target's signal (results shaped like the targets); None: every
+        signal at every target (results: a row per target, a column per signal).
+        """
+        t_source = np.asarray(source_time_s, dtype=float)
+        v_source = np.asarray(values, dtype=float).reshape(len(t_source), len(self._signals))
+        t_target = np.asarray(target_time_s, dtype=float)
+        if present is not None:
+            present = present.reshape(v_source.shape)
+        if len(t_source) > 1 and (t_source[1:] < t_source[:-1]).any():
+            order = np.argsort(t_source, kind="stable")
+            t_source, v_source = t_source[order], v_source[order]
+            present = present[order] if present is not None else None
+        time_s, value = self._with_carried(t_source, v_source)
+        # the last row at or before each target (row 0: the carried one), then the last with a value
+        row = np.searchsorted(t_source, t_target, side="right")
+        cols: NDArray[np.int64]
+        if signal is None:  # every signal at every target: a row per target, a column per signal
+            row, cols, t_target = row[:, None], self._signals, t_target[:, None]
+        else:
+            cols = np.asarray(signal, dtype=np.int64)
+        last = _last_present(present)
+        if last is not None:
+            row = last[row, cols]
+        age_s = t_target - time_s[row, cols]
+        paired = (age_s >= 0) & (age_s <= self.max_age_s)  # NaN (none held): False
+        # carry each signal's last value of this part (row 0 where the part has none)
+        end = last[-1] if last is not None else len(t_source)
+        self.time_s, self.value = time_s[end, self._signals], value[end, self._signals]
+        return np.where(paired, value[row, cols], np.nan), np.where(paired, age_s, np.nan)
+
+    def _with_carried(
+        self, t_source: NDArray[np.float64], v_source: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Each entry's time and value, a row per source time after a first row: what is carried."""
+        time_s = np.empty((len(t_source) + 1, len(self._signals)))
+        time_s[0], time_s[1:] = self.time_s, t_source[:, None]
+        value = np.empty_like(time_s)
+        value[0], value[1:] = self.value, v_source
+        return time_s, value
+
+
+def _last_present(present: NDArray[np.bool_] | None) -> NDArray[np.int64] | None:
+    """Per row (after a first row: the carried value, which counts as one) and column of ``present``, the
+    last row up to it that holds a value; None when every entry is a value."""
+    if present is None:
+        return None
+    is_value = np.empty((len(present) + 1, present.shape[1]), dtype=bool)
+    is_value[0], is_value[1:] = True, present
+    return np.maximum.accumulate(np.where(is_value, np.arange(len(is_value))[:, None], 0), axis=0)
+
+
+def held(
+    series: Series, target_time_s: NDArray[np.float64], max_age_s: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One signal's value held at each target time, and its age [s] (NaN: none within ``max_age_s``)."""
+    value, age_s = HeldValues(1, max_age_s).hold(series[0], np.asarray(series[1])[:, None], target_time_s)
+    return value[:, 0], age_s[:, 0]
+
+
+def bus_voltage_or_battery(
+    bus_voltage_v: NDArray[np.float64], battery_voltage_v: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The ESC's bus voltage [V], the battery's where the ESC reports none (0 or NaN)."""
+    return np.where(bus_voltage_v > 0, bus_voltage_v, battery_voltage_v)
 
 
 def motor_table(
@@ -131,9 +230,7 @@ def motor_table(
     for m, series in commands.items():
         sel = motors == m
         if sel.any():
-            t, v = _sorted_series(series)
-            throttle[sel] = hold_previous(t, v, time_s[sel], COMMAND_MAX_AGE_S)
-            command_age[sel] = time_s[sel] - hold_previous(t, t, time_s[sel], COMMAND_MAX_AGE_S)
+            throttle[sel], command_age[sel] = held(series, time_s[sel], COMMAND_MAX_AGE_S)
     columns["throttle"] = throttle
     meta = dict(meta)
     # How far the command paired with a sample may be from the one the motor had when it was measured:
@@ -146,15 +243,11 @@ def motor_table(
         meta["command_age_s"] = float(np.percentile(ages, 95))
         meta["pairing_s"] = max(meta["command_age_s"], float(meta.get("sample_time_uncertainty_s") or 0.0))
     if battery_voltage is not None and len(battery_voltage[0]):
-        t, v = _sorted_series(battery_voltage)
-        battery = hold_previous(t, v, time_s, CONTEXT_MAX_AGE_S)
-        bus = columns["bus_voltage_v"]
-        missing = ~(bus > 0)
-        bus[missing] = battery[missing]
+        battery, _ = held(battery_voltage, time_s, CONTEXT_MAX_AGE_S)
+        columns["bus_voltage_v"] = bus_voltage_or_battery(columns["bus_voltage_v"], battery)
     for name, series in context.items():
         if len(series[0]):
-            t, v = _sorted_series(series)
-            columns[name] = hold_previous(t, v, time_s, CONTEXT_MAX_AGE_S)
+            columns[name], _ = held(series, time_s, CONTEXT_MAX_AGE_S)
     # What the motor sees, exactly as the live agent computes it (ESC as an ideal PWM stage):
     # voltage_v = throttle × bus voltage, current_a = ESC current / throttle (NaN at a tiny command).
     columns["voltage_v"], columns["current_a"] = mavlink_esc.motor_inputs(

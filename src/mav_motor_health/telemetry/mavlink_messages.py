@@ -26,12 +26,13 @@ the rows it gives read whole. Scaling and mappings are :mod:`.mavlink_esc`'s. Th
 * ``PARAM_VALUE`` changes the mapping and the PWM range from its place in the stream on.
 
 "The stream has carried X" counts the call being read: a .tlog, read in one call, decides from the whole
-log. Pairing each ESC row with its motor's command and the battery comes after the reading: the .tlog
-reader hands the reading to :func:`.assemble.motor_table` (every log format's pairing: the latest value
-at or before the row's *time*, within an age), the live agent to :class:`SamplePairing` (the latest
-value that came before the row *in the stream*, however old); both derive the motor's voltage and
-current with :func:`.mavlink_esc.motor_inputs`. Tests hold the .tlog table and the live rows of the same
-messages equal.
+log. Pairing each ESC row with its motor's command and the battery comes after the reading, by one rule
+and one class (:class:`.assemble.HeldValues`: the last value at or before the row's *time*, none older
+than 1 s for commands, 5 s for the battery): the .tlog reader hands the whole reading to
+:func:`.assemble.motor_table` (every log format's pairing), the live agent each batch's to
+:class:`SamplePairing`, which carries the last values between batches; both derive the motor's voltage
+and current with :func:`.mavlink_esc.motor_inputs`. Tests hold the .tlog table and the live rows of the
+same messages equal, however the messages are batched.
 """
 
 from __future__ import annotations
@@ -46,7 +47,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import mavlink_esc
-from .assemble import MAX_ESC_SLOTS, Series
+from .assemble import (
+    COMMAND_MAX_AGE_S,
+    CONTEXT_MAX_AGE_S,
+    MAX_ESC_SLOTS,
+    HeldValues,
+    Series,
+    bus_voltage_or_battery,
+)
 
 __all__ = [
     "MAX_MOTORS",
@@ -489,45 +497,41 @@ def _esc_status(rec: Messages) -> tuple[NDArray[Any], ...]:
 
 
 class SamplePairing:
-    """The live agent's pairing: each ESC row gets the latest command of its motor and the latest battery
-    reading that came before it in the stream (carried across calls), and what the motor sees.
-
-    Where :func:`.assemble.motor_table` pairs a log's rows by time, within an age (commands older than
-    ``COMMAND_MAX_AGE_S``, battery values older than ``CONTEXT_MAX_AGE_S`` are none), the live agent pairs
-    by arrival and holds the latest value however old, and the latest battery *reading* (a message saying
-    "not measured" leaves the one before in force). Where the ESC measures no voltage the battery's stands
-    in; ``voltage_v``/``current_a`` come from :func:`.mavlink_esc.motor_inputs`, as in the table. Rows
-    come out message by message, each message's in motor order, with their ``position``.
+    """The live agent's pairing, :func:`.assemble.motor_table`'s rule on readings fed one after another:
+    each ESC row gets its motor's command and the battery by previous-value hold by time
+    (:class:`.assemble.HeldValues`, carried across calls): the last value at or before the row's time,
+    none older than ``COMMAND_MAX_AGE_S`` for commands, ``CONTEXT_MAX_AGE_S`` for the battery (a message
+    saying "not measured" is the latest word: no value). A message that carries no command for a motor
+    leaves that motor's last command in force, as the .tlog reader's command series skip it. Where the ESC
+    measures no voltage the battery's stands in; ``voltage_v``/``current_a`` come from
+    :func:`.mavlink_esc.motor_inputs`, as in the table. Rows come out message by message, each message's in
+    motor order, with their ``position``.
     """
 
     def __init__(self) -> None:
-        self._command = np.full(MAX_MOTORS, np.nan)  # each motor's latest command (NaN: none yet)
-        self._battery_v = np.full(1, np.nan)
-        self._battery_a = np.full(1, np.nan)
+        self.commands = HeldValues(MAX_MOTORS, COMMAND_MAX_AGE_S)  # motor m: signal m - 1
+        self.battery = HeldValues(2, CONTEXT_MAX_AGE_S)  # voltage [V], current [A]
 
     def pair(self, reading: MotorReading) -> dict[str, NDArray[Any]]:
         """The table columns of the reading's ESC rows (and their ``position``)."""
-        position, motor = reading.position, reading.motor
-        n = len(position)
+        position, motor, time_s = reading.position, reading.motor, reading.time_s
         throttle = reading.throttle
         if len(reading.command_position):  # a column per motor number (motor m: column m - 1)
             throttle = np.full((len(reading.command_position), MAX_MOTORS), np.nan)
             throttle[:, reading.command_motors - 1] = reading.throttle
-        command = _hold_latest(reading.command_position, throttle, self._command, position, motor - 1)
-        if len(reading.battery_position):
-            first = np.zeros(n, dtype=np.int64)
-            battery_v = _hold_latest(
-                reading.battery_position, reading.battery_voltage_v[:, None], self._battery_v, position, first
-            )
-            battery_a = _hold_latest(
-                reading.battery_position, reading.battery_current_a[:, None], self._battery_a, position, first
-            )
-        else:
-            battery_v, battery_a = np.full(n, self._battery_v[0]), np.full(n, self._battery_a[0])
-        bus = np.where(reading.bus_voltage_v > 0, reading.bus_voltage_v, battery_v)
+        command, _ = self.commands.hold(
+            reading.command_time_s, throttle, time_s, motor - 1, present=np.isfinite(throttle)
+        )
+        battery, _ = self.battery.hold(
+            reading.battery_time_s,
+            np.stack((reading.battery_voltage_v, reading.battery_current_a), axis=-1),
+            time_s,
+        )
+        battery_v, battery_a = battery[:, 0], battery[:, 1]
+        bus = bus_voltage_or_battery(reading.bus_voltage_v, battery_v)
         voltage, current = mavlink_esc.motor_inputs(command, bus, reading.esc_current_a)
         columns: dict[str, NDArray[Any]] = {
-            "time_s": reading.time_s,
+            "time_s": time_s,
             "motor": motor,
             "omega_rad_s": reading.omega_rad_s,
             "current_a": current,
@@ -540,34 +544,11 @@ class SamplePairing:
             "battery_current_a": battery_a,
             "position": position,
         }
-        if n > 1:
+        if len(position) > 1:
             order = np.lexsort((motor, position))
-            if (order != np.arange(n)).any():
+            if (order != np.arange(len(position))).any():
                 columns = {name: values[order] for name, values in columns.items()}
         return columns
-
-
-def _hold_latest(
-    source: NDArray[np.int64],
-    values: NDArray[np.float64],
-    carried: NDArray[np.float64],
-    at: NDArray[np.int64],
-    column: NDArray[np.int64],
-) -> NDArray[np.float64]:
-    """Per target ``at[i]``: the latest finite ``values[:, column[i]]`` whose ``source`` position is before
-    it (``source`` increasing), else ``carried[column[i]]``; then ``carried`` takes each column's latest
-    finite value."""
-    if not len(source):
-        return carried[column]
-    present = np.isfinite(values)
-    last = np.maximum.accumulate(np.where(present, np.arange(len(source))[:, None], -1), axis=0)
-    row = np.searchsorted(source, at) - 1
-    found = np.where(row >= 0, last[np.maximum(row, 0), column], -1)
-    held = np.where(found >= 0, values[np.maximum(found, 0), column], carried[column])
-    latest = last[-1]
-    now = np.flatnonzero(latest >= 0)
-    carried[now] = values[latest[now], now]
-    return held
 
 
 def columns_of(kind: str, time_s: Sequence[float], position: Sequence[int], msgs: Sequence[Any]) -> Messages:
