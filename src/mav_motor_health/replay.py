@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .diagnosis.noise import band_noise_of
 from .diagnosis.pipeline import DIAGNOSIS_COLUMNS, diagnose
@@ -215,13 +216,36 @@ def _num(x: Any) -> float | None:
     return round(value, 6) if math.isfinite(value) else None
 
 
+def rows_by_motor(motor: NDArray[np.int64], wanted: Sequence[int]) -> dict[int, slice | NDArray[np.bool_]]:
+    """Each wanted motor's rows: a slice where the table is grouped by motor in order (the diagnosis'
+    result is), else a mask."""
+    if np.all(motor[1:] >= motor[:-1]):
+        bounds = np.searchsorted(motor, [list(wanted), [m + 1 for m in wanted]])
+        return {m: slice(int(a), int(b)) for m, a, b in zip(wanted, *bounds.tolist())}
+    return {m: motor == m for m in wanted}
+
+
+def motor_numbers(motor: NDArray[np.int64]) -> list[int]:
+    """The motors a table has rows of, in order (without sorting where its rows are grouped by motor)."""
+    if np.all(motor[1:] >= motor[:-1]):
+        return motor[np.concatenate(([True], motor[1:] != motor[:-1]))].tolist() if len(motor) else []
+    return [int(m) for m in np.unique(motor)]
+
+
+def has_rows(rows: slice | NDArray[np.bool_]) -> bool:
+    """Whether :func:`rows_by_motor`'s selection holds any row."""
+    return rows.stop > rows.start if isinstance(rows, slice) else bool(rows.any())
+
+
 def motor_verdicts(result: TelemetryTable, expected: Sequence[int] = ()) -> list[MotorVerdict]:
     """The verdict per motor: NO_DATA if its telemetry is missing or stale, else its main announced fault."""
     verdicts = []
     log_end = float(np.max(result["time_s"])) if len(result) else 0.0
-    for motor in sorted(set(result.motors()) | set(expected)):
-        sel = result["motor"] == motor
-        n = int(sel.sum())
+    motors = sorted(set(motor_numbers(result["motor"])) | set(expected))
+    selections = rows_by_motor(result["motor"], motors)
+    for motor in motors:
+        sel = selections[motor]
+        n = len(result["time_s"][sel])
         if n == 0:
             verdicts.append(
                 MotorVerdict(
@@ -380,7 +404,7 @@ def replay_log(
     if isinstance(params, VehicleParams):  # the vehicle's ESC map and current sensing, then its motors
         noise = band_noise_of(params.noise)  # the noise its bands are measured in (noise_bands profiles)
         table = params.calibrate(table)
-        params = params.models(range(1, max(table.motors()) + 1))
+        params = params.models(range(1, max(motor_numbers(table["motor"])) + 1))
     if calibrate_s is not None:
         from .diagnosis.calibration import calibrate
 
@@ -399,7 +423,7 @@ def replay_log(
         notes += (pairing,)
         if reissue_warnings:
             warnings.warn(f"{log}: {pairing}", UserWarning, stacklevel=2)
-    bar.update(1, 4, f"diagnosing {len(table.motors())} motors")
+    bar.update(1, 4, f"diagnosing {len(motor_numbers(table['motor']))} motors" if progress else "")
     result = diagnose(table, params, profile, noise)  # the same core the live agent runs
     unfit = vehicle_note(result.meta, params)
     if unfit is not None:

@@ -20,6 +20,7 @@ from .diagnosis.profile import ThresholdProfile
 from .diagnosis.states import MotorState
 from .model.params import MotorParams
 from .publish.web.hexaview import hexaview_report_section
+from .replay import has_rows, rows_by_motor
 from .telemetry.table import TelemetryTable
 
 if TYPE_CHECKING:
@@ -93,15 +94,13 @@ class _Axes:
 
 
 def _path(xs: NDArray[np.float64], ys: NDArray[np.float64]) -> str:
-    """An SVG path through the points, broken where a value is missing."""
+    """An SVG path through the points, broken where a value is missing (one ``%`` format per stretch)."""
+    ok = np.isfinite(xs) & np.isfinite(ys)
+    edges = np.flatnonzero(np.diff(np.concatenate(([False], ok, [False])).astype(np.int8)))
     parts: list[str] = []
-    pen_down = False
-    for x, y in zip(xs.tolist(), ys.tolist()):
-        if not (math.isfinite(x) and math.isfinite(y)):
-            pen_down = False
-            continue
-        parts.append(f"{'L' if pen_down else 'M'}{x:.1f},{y:.1f}")
-        pen_down = True
+    for start, stop in zip(edges[::2].tolist(), edges[1::2].tolist()):
+        points = np.column_stack([xs[start:stop], ys[start:stop]]).ravel().tolist()
+        parts.append(("M%.1f,%.1f" + "L%.1f,%.1f" * (stop - start - 1)) % tuple(points))
     return "".join(parts)
 
 
@@ -110,9 +109,8 @@ def _band(xs: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float
     if ok.sum() < 2:
         return ""
     x, a, b = xs[ok], lo[ok], hi[ok]
-    points = [f"{u:.1f},{v:.1f}" for u, v in zip(x.tolist(), b.tolist())]
-    points += [f"{u:.1f},{v:.1f}" for u, v in zip(x[::-1].tolist(), a[::-1].tolist())]
-    return " ".join(points)
+    outline = np.column_stack([np.concatenate([x, x[::-1]]), np.concatenate([b, a[::-1]])])
+    return " ".join(["%.1f,%.1f"] * len(outline)) % tuple(outline.ravel().tolist())
 
 
 def _thin(n: int) -> NDArray[np.int64]:
@@ -269,6 +267,7 @@ def render_report(
 
     # Fault timeline: the announced state of every motor over the flight.
     motors = [v.motor for v in verdicts]
+    rows = rows_by_motor(result["motor"], motors)
     row_h = 22
     height = 16 + row_h * len(motors) + 24
     axes = _Axes(t0, t1, 0.0, 1.0, height=1)
@@ -278,8 +277,8 @@ def render_report(
     for k, motor in enumerate(motors):
         y = 8 + k * row_h
         svg.append(f'<text x="{LEFT - 6}" y="{y + 14}" text-anchor="end">motor {motor}</text>')
-        sel = result["motor"] == motor
-        if not sel.any():
+        sel = rows[motor]
+        if not has_rows(sel):
             svg.append(
                 f'<rect x="{LEFT}" y="{y}" width="{WIDTH - LEFT - RIGHT}" height="{row_h - 6}" '
                 f'fill="{STATE_COLOURS[MotorState.NO_DATA]}"><title>no telemetry</title></rect>'
@@ -299,8 +298,8 @@ def render_report(
     out.append("<h2>Measured versus model, per motor</h2>")
     for v in verdicts:
         out.append(f"<h3>Motor {v.motor} — {_badge(v.state)} <span class='meta'>{_esc(v.reason)}</span></h3>")
-        sel = result["motor"] == v.motor
-        if not sel.any():
+        sel = rows[v.motor]
+        if not has_rows(sel):
             out.append("<p class='meta'>No ESC telemetry for this motor.</p>")
             continue
         t = result["time_s"][sel]

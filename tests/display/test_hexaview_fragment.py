@@ -41,6 +41,13 @@ def test_state_timelines_are_the_change_points(diagnosed_flight: TelemetryTable)
     assert all(a[1] != b[1] for a, b in zip(timelines[4], timelines[4][1:]))
 
 
+def test_state_timelines_do_not_depend_on_the_row_order(diagnosed_flight: TelemetryTable) -> None:
+    # the diagnosis' result (grouped by motor, in time order) is read in one pass, any other order per motor
+    shuffled = diagnosed_flight.select(np.random.default_rng(3).permutation(len(diagnosed_flight)))
+    assert state_timelines(shuffled) == state_timelines(diagnosed_flight)
+    assert list(state_timelines(shuffled)) == list(state_timelines(diagnosed_flight)) == [1, 2, 3, 4, 5, 6]
+
+
 def test_state_timelines_needs_the_state_column() -> None:
     table = TelemetryTable.from_columns(time_s=[0.0], motor=[1], omega_rad_s=[1.0], current_a=[1.0])
     with pytest.raises(DataError, match="announced"):

@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from ..errors import DataError, LogFormatError
 from . import mavlink_esc
-from ._logscan import Damage, crc_x25_rows, follow_chain, gather_rows
+from ._logscan import Damage, crc_x25_rows, follow_chain, gather_rows, zero_past
 from .assemble import EscSamples, Series, motor_table, no_esc_error
 from .mavlink_messages import READ_MESSAGES, MessageReader, Messages
 from .table import TelemetryTable
@@ -157,35 +157,39 @@ def read_messages(
         raise LogFormatError(f"cannot read: {exc.strerror or exc}", path=path) from exc
     size = len(data)
     out = TlogMessages()
-    cand = np.flatnonzero((data[8:] == 0xFD) | (data[8:] == 0xFE)).astype(np.int64) + 8
-    cand = cand[cand + 10 <= size]
+    cand = _sync_bytes(data)
     if len(cand) == 0:
         raise LogFormatError("no MAVLink frame found: not a .tlog file", path=path, offset=0)
+    # Each candidate's record from its time stamp to the end of a MAVLink 2 header, gathered once:
+    # bytes 0–7 the time stamp, 8 on the frame (magic, length, flags or sequence, ..., message id).
+    head = gather_rows(data, cand - 8, 18)
     # Sync bytes inside payloads are weeded out before the walk: a real MAVLink 2 frame has no
     # incompatibility flag but signing, and a real record's timestamp shares its top 16 bits (2**48 µs,
     # nine years) with the log's other records.
-    top = (data[cand - 8].astype(np.int64) << 8) | data[cand - 7]
+    top = (head[:, 0].astype(np.int64) << 8) | head[:, 1]
     common = int(np.bincount(top).argmax())
-    plausible = ((top == common) | (top == common + 1)) & (
-        (data[cand] == 0xFE) | ((data[cand + 2] & 0xFE) == 0)
-    )
-    cand = cand[plausible]
-    v2 = data[cand] == 0xFD
-    plen = data[cand + 1].astype(np.int64)
-    signed = v2 & ((data[cand + 2] & 1) != 0)
+    plausible = ((top == common) | (top == common + 1)) & ((head[:, 8] == 0xFE) | ((head[:, 10] & 0xFE) == 0))
+    cand, head = cand[plausible], head[plausible]
+    v2 = head[:, 8] == 0xFD
+    plen = head[:, 9].astype(np.int64)
+    signed = v2 & ((head[:, 10] & 1) != 0)
     header = np.where(v2, 10, 6)
     frame_len = header + plen + 2 + np.where(signed, 13, 0)
     next_start = cand + frame_len + 8
     msgid = np.where(
         v2,
-        data[cand + 7].astype(np.int64)
-        | (data[cand + 8].astype(np.int64) << 8)
-        | (data[cand + 9].astype(np.int64) << 16),
-        data[cand + 5].astype(np.int64),
+        head[:, 15].astype(np.int64)
+        | (head[:, 16].astype(np.int64) << 8)
+        | (head[:, 17].astype(np.int64) << 16),
+        head[:, 13].astype(np.int64),
     )
 
-    def frame_ok(rows: NDArray[np.int64]) -> NDArray[np.bool_]:
-        """CRC check of the frames ``rows`` (indices into the candidates); unknown ids fail."""
+    # the bytes each message's frames were checked with (the last check of many frames), payloads included
+    checked: dict[int, tuple[NDArray[np.int64], NDArray[np.uint8]]] = {}
+
+    def frame_ok(rows: NDArray[np.int64], keep: bool = False) -> NDArray[np.bool_]:
+        """CRC check of the frames ``rows`` (indices into the candidates); unknown ids fail. ``keep``: the
+        frames' bytes are kept in ``checked`` for their payloads."""
         ok = np.zeros(len(rows), dtype=bool)
         ids = msgid[rows]
         for mid in np.unique(ids):
@@ -194,15 +198,28 @@ def read_messages(
                 continue
             sel = np.flatnonzero(ids == mid)
             r = rows[sel]
-            end = cand[r] + header[r] + plen[r]
-            fits = end + 2 <= size
+            fits = cand[r] + header[r] + plen[r] + 2 <= size
             crc_len = header[r] - 1 + plen[r]
-            body = gather_rows(data, cand[r] + 1, int(crc_len.max()), crc_len)
+            # from the byte after the magic: the header, the payload (its whole layout) and the CRC
+            width = max(int(crc_len.max()) + 2, int(header[r].max()) - 1 + spec.dtype.itemsize)
+            body = gather_rows(data, cand[r] + 1, width)  # zeros past the end of the file
             crc = crc_x25_rows(body, crc_len, spec.crc_extra)
-            end_c = np.minimum(end, size - 2)
-            stored = data[end_c].astype(np.uint16) | (data[end_c + 1].astype(np.uint16) << 8)
+            at = np.arange(len(r))
+            stored = body[at, crc_len].astype(np.uint16) | (body[at, crc_len + 1].astype(np.uint16) << 8)
             ok[sel] = fits & (crc == stored)
+            if keep:
+                checked[int(mid)] = (r, body)
         return ok
+
+    def payloads(spec: _MessageSpec, rows: NDArray[np.int64]) -> NDArray[np.uint8]:
+        """The payloads of the frames ``rows`` (MAVLink 2's truncated zeros put back): cut from the bytes
+        their CRC check read where it kept them, else gathered from the file."""
+        kept = checked.get(spec.msgid)
+        start = header[rows] - 1
+        if kept is not None and len(rows) and np.array_equal(kept[0], rows) and (start == start[0]).all():
+            cut = np.ascontiguousarray(kept[1][:, start[0] : start[0] + spec.dtype.itemsize])
+            return zero_past(cut, plen[rows])
+        return gather_rows(data, cand[rows] + header[rows], spec.dtype.itemsize, plen[rows])
 
     def accept(k: int) -> bool:
         if next_start[k] > size + 8:
@@ -229,7 +246,7 @@ def read_messages(
             first += 1
         chain = live[follow_chain(cand[live], next_start[live], size + 8, accept_live, damage, first=first)]
         used = np.flatnonzero(np.isin(msgid[chain], wanted_ids))
-        bad = used[~frame_ok(chain[used])]
+        bad = used[~frame_ok(chain[used], keep=True)]
         if len(bad) == 0:
             break
         active[chain[bad]] = False
@@ -241,7 +258,7 @@ def read_messages(
     out.damage = damage
     if len(chain) == 0:
         raise LogFormatError("no valid MAVLink frame found: not a .tlog file", path=path, offset=0)
-    stamps = gather_rows(data, cand[chain] - 8, 8).view(">u8").ravel()
+    stamps = np.ascontiguousarray(head[chain, :8]).view(">u8").ravel()
     out.first_time_us = int(stamps[0])
     ids = msgid[chain]
     uniq, counts = np.unique(ids, return_counts=True)
@@ -254,15 +271,23 @@ def read_messages(
             continue
         sel = np.flatnonzero(ids == spec.msgid)
         rows = chain[sel]
-        payload = gather_rows(data, cand[rows] + header[rows], spec.dtype.itemsize, plen[rows])
+        payload = payloads(spec, rows)
         out.messages[name] = payload.view(spec.dtype).ravel()
         out.time_us[name] = stamps[sel]
-        out.sysid[name] = data[cand[rows] + np.where(v2[rows], 5, 3)]
-        out.compid[name] = data[cand[rows] + np.where(v2[rows], 6, 4)]
+        out.sysid[name] = np.where(v2[rows], head[rows, 13], head[rows, 11])
+        out.compid[name] = np.where(v2[rows], head[rows, 14], head[rows, 12])
         out.offsets[name] = cand[rows] - 8
     if warn:
         damage.warn(path, "frames")
     return out
+
+
+def _sync_bytes(data: NDArray[np.uint8]) -> NDArray[np.int64]:
+    """Offsets of the ``0xFD``/``0xFE`` bytes that can start a frame: after a time stamp, with room for
+    a MAVLink 2 header."""
+    at = np.flatnonzero(data[8:] >= 0xFD)  # one pass over the file; 0xFF taken out after
+    at = at[data[at + 8] != 0xFF].astype(np.int64) + 8
+    return at[at + 10 <= len(data)]
 
 
 def _params(msgs: TlogMessages, keep: NDArray[np.bool_] | None) -> tuple[dict[str, float], dict[str, float]]:

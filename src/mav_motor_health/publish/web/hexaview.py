@@ -57,6 +57,9 @@ def state_timelines(table: TelemetryTable, column: str = "announced") -> dict[in
             f"table has no '{column}' column (state codes); has {', '.join(table.names)}",
             path=table.source or None,
         )
+    ordered = _ordered_timelines(table["motor"], table["time_s"], np.asarray(table[column]).astype(np.int64))
+    if ordered is not None:
+        return ordered
     out: dict[int, list[tuple[float, str]]] = {}
     for motor in table.motors():
         rows = table.for_motor(motor)
@@ -67,6 +70,21 @@ def state_timelines(table: TelemetryTable, column: str = "announced") -> dict[in
             continue
         change = np.flatnonzero(np.concatenate(([True], codes[1:] != codes[:-1])))
         out[int(motor)] = [(float(time_s[i]), MotorState(int(codes[i])).label) for i in change]
+    return out
+
+
+def _ordered_timelines(
+    motor: np.ndarray, time_s: np.ndarray, codes: np.ndarray
+) -> dict[int, list[tuple[float, str]]] | None:
+    """:func:`state_timelines` in one pass where the rows are grouped by motor in order, each motor's in
+    time order (the diagnosis' result is); None where they are not."""
+    same_motor = motor[1:] == motor[:-1]
+    if len(motor) == 0 or not np.all((motor[1:] > motor[:-1]) | (same_motor & (time_s[1:] >= time_s[:-1]))):
+        return None
+    change = np.flatnonzero(np.concatenate(([True], ~same_motor | (codes[1:] != codes[:-1]))))
+    out: dict[int, list[tuple[float, str]]] = {}
+    for m, t, code in zip(motor[change].tolist(), time_s[change].tolist(), codes[change].tolist()):
+        out.setdefault(int(m), []).append((float(t), MotorState(code).label))
     return out
 
 
