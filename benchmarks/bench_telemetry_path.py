@@ -13,7 +13,7 @@ message interval off adds noise that the tuned bands do not cover.
 For a calm and a gusty healthy flight (``flight/healthy_calm``'s manoeuvres), this prints, per path,
 the share of the measured samples that are judged, the share of judged samples that are NORMAL (— where
 none is judged) and the false fault events, and for the logs the same without the pairing rule
-(``diagnosis/pairing.py``: the log's ``pairing_s`` left out): the simulator's table (as
+(``diagnosis/pairing.py``: the samples' ``pairing_s`` column and the log's summary left out): the simulator's table (as
 ``bench_flight.py`` sees it), CSV (the same), .bin with RCOU at 10 and 50 Hz, .tlog with
 ESC_TELEMETRY and SERVO_OUTPUT_RAW at 10, 50, 100 and 200 Hz (the ESCs themselves report at 10–50 Hz;
 the stream rate bounds how much older than its message's command a packet can be). Then the fault flights
@@ -107,8 +107,9 @@ def main() -> int:
                 normal = healthy.normal_accuracy_pct
                 shown = "      —" if normal is None else f"{normal:7.2f}%"
                 line = f"{turbulence:10s} {name:16s} {judged:6.1f}% {shown:>8s} {healthy.false_events:13d}"
-                if table.meta.get("pairing_s") is not None:  # the same samples, the log's pairing not weighed
-                    bare = diagnose(TelemetryTable(table.columns, source=table.source), params, profile)
+                if table.meta.get("pairing_s") is not None:  # the same samples, their pairing not weighed
+                    unpaired = {n: table[n] for n in table.names if n != "pairing_s"}
+                    bare = diagnose(TelemetryTable(unpaired, source=table.source), params, profile)
                     unweighed = score({c: bare[c] for c in bare.names}, scenario.truth())
                     line += f"   {unweighed.normal_accuracy_pct:31.2f}% {unweighed.false_events:6d}"
                 print(line)

@@ -237,3 +237,61 @@ def test_pairing_error_is_the_speed_a_command_that_far_off_could_move(paper_moto
     np.testing.assert_allclose(np.concatenate(parts), whole)
     still, _ = pairing_error_rad_s(paper_motor, t, np.full(t.size, 7.0), w_model, 0.05, 0.15)
     assert np.all(still == 0.0)  # a command that stands still is paired right whenever it was read
+
+
+def test_a_pairing_per_sample_is_the_one_number_where_all_are_equal(paper_motor) -> None:
+    """The pairing guard weighs each sample's own pairing (a log's ``pairing_s`` column, the live agent's
+    samples'): all equal, it is the guard with that one number — the pairing error, and the whole
+    diagnosis of a loosely paired log; varying, each sample is weighed with the 95th percentile of the
+    last second's pairings (diagnosis/pairing.py), the same fed whole or in pieces."""
+    from pathlib import Path
+
+    from mav_motor_health.config import load_profile
+    from mav_motor_health.diagnosis.pairing import PAIRING_WINDOW_S, pairing_error_rad_s
+    from mav_motor_health.telemetry import sources
+
+    t = np.arange(0.0, 4.0, 0.02)
+    v = 5.0 + 2.0 * t + 0.3 * np.sin(5 * t)
+    w_model = steady_state(paper_motor, v).omega_rad_s
+    scalar, _ = pairing_error_rad_s(paper_motor, t, v, w_model, 0.05, 0.15)
+    per_sample, _ = pairing_error_rad_s(paper_motor, t, v, w_model, np.full(t.size, 0.05), 0.15)
+    np.testing.assert_array_equal(per_sample, scalar)
+    assert scalar.max() > 0
+    # a stream whose commands age from 10 to 90 ms: weighed with its loosest pairing, 90 ms
+    sawtooth = 0.01 + 0.02 * (np.arange(t.size) % 5)
+    mixed, _ = pairing_error_rad_s(paper_motor, t, v, w_model, sawtooth, 0.15)
+    low, _ = pairing_error_rad_s(paper_motor, t, v, w_model, 0.01, 0.15)
+    high, _ = pairing_error_rad_s(paper_motor, t, v, w_model, 0.09, 0.15)
+    np.testing.assert_array_equal(mixed[t >= 0.08], high[t >= 0.08])
+    # one loosely paired sample (a stalled read) among the last second's 50 is not weighed; a stretch of
+    # them (more than 5 % of the window) is, for the second it stays in the window
+    loose = t[100]  # 2 s
+    varying = np.where(t == loose, 0.09, 0.01)
+    mixed, _ = pairing_error_rad_s(paper_motor, t, v, w_model, varying, 0.15)
+    np.testing.assert_array_equal(mixed[t > 1.0], low[t > 1.0])
+    stretch = (t >= loose) & (t < loose + 0.09)  # 5 samples, 10 % of the window
+    varying = np.where(stretch, 0.09, 0.01)
+    mixed, _ = pairing_error_rad_s(paper_motor, t, v, w_model, varying, 0.15)
+    third, last = t[stretch][2], t[stretch][-1]
+    weighed = (t >= third) & (t - PAIRING_WINDOW_S <= third)  # 3 of the window's 50: its 95th percentile
+    np.testing.assert_array_equal(mixed[weighed], high[weighed])
+    gone = t - PAIRING_WINDOW_S > last
+    np.testing.assert_array_equal(mixed[gone], low[gone])
+    carry, parts = None, []
+    for k in range(0, t.size, 7):
+        part, carry = pairing_error_rad_s(
+            paper_motor, t[k : k + 7], v[k : k + 7], w_model[k : k + 7], varying[k : k + 7], 0.15, carry
+        )
+        parts.append(part)
+    np.testing.assert_allclose(np.concatenate(parts), mixed, rtol=1e-12)
+
+    # the whole diagnosis of a loosely paired log: a column of one value is that value as one number
+    table = sources.read(Path(__file__).resolve().parents[1] / "sitl_logs" / "flight_F4.1_moderate.tlog")
+    profile = load_profile("flight")
+    columns = {name: table[name] for name in table.names if name != "pairing_s"}
+    constant = TelemetryTable({**columns, "pairing_s": np.full(len(table), 0.1)}, source=table.source)
+    one_number = TelemetryTable(columns, source=table.source, meta={"pairing_s": 0.1})
+    a, b = diagnose(constant, paper_motor, profile), diagnose(one_number, paper_motor, profile)
+    assert ((a["sensor_flags"] & SensorIssue.CURRENT_UNPAIRED) != 0).any()  # the guard acts
+    for name in ("state", "announced", "steady", "sensor_flags", "pairing_error_rad_s", "omega_model_rad_s"):
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)

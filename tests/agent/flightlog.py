@@ -160,6 +160,7 @@ def table_from_fields(fields: FlightFields) -> TelemetryTable:
             "esc_current_a",
             "esc_temp_c",
             "battery_current_a",
+            "pairing_s",
         )
     }
     time_s = (
@@ -188,4 +189,7 @@ def table_from_fields(fields: FlightFields) -> TelemetryTable:
         cols["esc_current_a"].append(si["esc_current_a"])
         cols["esc_temp_c"].append(si["esc_temp_c"])
         cols["battery_current_a"].append(fields.battery_ca / 100.0)
+        # each ESC message carries the ESC's last packet, measured since the motor's message before (a
+        # tick: the reader's pairing, telemetry/assemble.py; the command comes with the message: age 0)
+        cols["pairing_s"].append(np.diff(time_s, prepend=time_s[0]))
     return TelemetryTable({k: np.concatenate(v) for k, v in cols.items()}, source="synthetic flight")

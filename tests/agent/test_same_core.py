@@ -158,24 +158,21 @@ def test_a_simulated_tlog_streamed_through_the_agent_gives_replays_samples(paper
     pairs them whatever the order, and the agent reading the .tlog in batches must too (its batches end
     between time stamps, never inside one): the same samples, the same diagnosis.
 
-    Not yet the same: replay weighs how loosely the whole log pairs samples with commands
-    (``meta["pairing_s"]``, diagnosis/pairing.py), which the agent cannot know before the flight ends; it
-    judges as if commands were of the sample's instant. Here the diagnosis is compared with replay's
-    without that weight (issue 18: a causal per-sample pairing for both is what remains)."""
+    The log pairs its samples loosely (ESC messages at 10 Hz, each carrying a packet up to 100 ms older
+    than its stamp), so the balance rule's pairing guard (diagnosis/pairing.py) sets samples aside. Both
+    weigh each sample's own pairing, worked out causally by the same code (telemetry/assemble.py:
+    ``pairing_s``, issue 18): the agent announces what ``replay`` announces, guard included."""
     from mav_motor_health.config import load_profile
+    from mav_motor_health.diagnosis.plausibility import SensorIssue
     from mav_motor_health.telemetry import sources
-    from mav_motor_health.telemetry.table import TelemetryTable
 
     path = Path(__file__).resolve().parents[2] / "sitl_logs" / "flight_F4.1_moderate.tlog"
     table = sources.read(path)
-    assert table.meta["pairing_s"] > 0.05  # a loosely paired log: the case the weight is for
-    unweighted = TelemetryTable(
-        {n: table[n] for n in table.names},
-        source=table.source,
-        meta={k: v for k, v in table.meta.items() if k != "pairing_s"},
-    )
-    batch = diagnose(unweighted, paper_motor, load_profile("flight"))
-    rows, _ = stream_through_agent(path, "flight")
+    assert table.meta["pairing_s"] > 0.05  # a loosely paired log: the case the guard is for
+    batch = diagnose(table, paper_motor, load_profile("flight"))  # as replay runs it
+    guarded = (batch["sensor_flags"] & SensorIssue.CURRENT_UNPAIRED) != 0
+    assert guarded.any() and (batch["pairing_error_rad_s"] > 0).any()  # not vacuous: the guard acts
+    rows, agent = stream_through_agent(path, "flight")
     assert len(rows) == len(batch)
     for motor in range(1, 7):
         live = [r for r in rows if r["motor"] == motor]
@@ -185,7 +182,22 @@ def test_a_simulated_tlog_streamed_through_the_agent_gives_replays_samples(paper
                 [r[name] for r in live], batch[name][sel], err_msg=f"motor {motor}: {name}"
             )
         # the low-passes in batches or whole differ in the last bits only
-        np.testing.assert_allclose(
-            [r["omega_model_rad_s"] for r in live], batch["omega_model_rad_s"][sel], rtol=1e-12
-        )
+        for name in ("omega_model_rad_s", "pairing_error_rad_s"):
+            np.testing.assert_allclose(
+                [r[name] for r in live],
+                batch[name][sel],
+                rtol=1e-9,
+                atol=1e-12,
+                err_msg=f"motor {motor}: {name}",
+            )
+    # the announcements: the agent's published changes are replay's announced transitions
+    expected = []
+    for motor in range(1, 7):
+        sel = batch["motor"] == motor
+        announced, times = batch["announced"][sel], batch["time_s"][sel]
+        expected.append((motor, float(times[0]), MotorState(int(announced[0]))))
+        for k in np.flatnonzero(np.diff(announced)) + 1:
+            expected.append((motor, float(times[k]), MotorState(int(announced[k]))))
+    published = [(c.motor, c.time_s, c.state) for c in agent.changes if c.state != MotorState.NO_DATA]
+    assert sorted(published) == sorted(expected)
     assert (batch["announced"] == MotorState.F4_1).any()  # not vacuous: the fault is announced

@@ -43,6 +43,7 @@ LIVE_COLUMNS = (
     "esc_temp_c",
     "battery_voltage_v",
     "battery_current_a",
+    "pairing_s",  # each sample's pairing with its command (telemetry/assemble.py)
 )
 
 V2 = mav2.MAVLink(None, srcSystem=1, srcComponent=1)
@@ -448,6 +449,17 @@ def test_stale_commands_and_battery_pair_alike_in_replay_and_live_cut_anywhere(t
     no_voltage = (tick >= 40) & (tick < 46)
     assert np.isfinite(whole["battery_voltage_v"][~stale_battery & ~no_voltage]).all()
     assert np.isnan(whole["battery_current_a"][(tick >= 20) & (tick < 40)]).all()  # not measured
+    # each sample's pairing: the interval of its motor's ESC messages (50 ms at 20 Hz) while the
+    # commands come with the messages (0 or 7 ms before), the command's age once that is more (the
+    # SERVO_OUTPUT_RAW gap), none without a command; a motor's first message has none before it
+    pairing = whole["pairing_s"]
+    age = (tick - 59) * SLOW_TICK_US / 1e6 + 0.007
+    gap = (tick >= 60) & (tick < 79)
+    np.testing.assert_allclose(pairing[gap], age[gap], rtol=1e-9)
+    assert np.isnan(pairing[stale_command]).all()
+    steady = (tick > 0) & ~gap & ~stale_command
+    np.testing.assert_allclose(pairing[steady], SLOW_TICK_US / 1e6, rtol=1e-6)
+    np.testing.assert_allclose(pairing[tick == 0], 0.0, atol=1e-9)  # command at the stamp, nothing before
     # batches: one message each, and two batches cut at every place
     assert_same_columns(batched_columns(received, list(range(1, len(received)))), whole, "one by one")
     kinds = [msg.get_type() for _, msg in received]

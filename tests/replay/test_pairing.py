@@ -109,3 +109,92 @@ def test_every_signal_at_every_target_and_the_carried_values() -> None:
     value, age = pairing.hold(np.zeros(0), np.zeros((0, 2)), np.array([6.5, 7.5]))  # nothing new
     np.testing.assert_array_equal(value, [[np.nan, 7.0], [np.nan, np.nan]])  # 7.5 s: older than 5 s
     np.testing.assert_array_equal(age, [[4.5, 4.5], [np.nan, np.nan]])
+
+
+# -- each sample's pairing uncertainty (``pairing_s``), replay's table and the live agent alike ------------
+def test_a_freshly_paired_sample_has_a_small_pairing_and_a_stale_one_a_large_one() -> None:
+    """Samples with their own time (a .bin's ESC records) and commands at 10 Hz: each sample's ``pairing_s``
+    is its held command's age: a few ms just after a command, ~90 ms just before the next, more once the
+    commands stop; stamped by their message (a .tlog's), the interval of the motor's messages counts too
+    (stale rows — a repeated packet, no speed — included), the larger of the two."""
+    from pathlib import Path
+
+    from mav_motor_health.telemetry.assemble import EscSamples, motor_table
+
+    t = np.round(np.arange(0.0, 2.0, 0.01), 6) + 0.002  # 100 Hz ESC samples, two motors
+    n = t.size
+    esc = EscSamples(
+        np.repeat(t, 2),
+        np.tile([0, 1], n),
+        np.full(2 * n, 600.0),
+        np.full(2 * n, 3.0),
+        np.full(2 * n, 12.0),
+    )
+    command_t = np.arange(0.0, 1.45, 0.1)  # 10 Hz, none after 1.4 s
+    commands = {m: (command_t, np.full(command_t.size, 0.5)) for m in (1, 2)}
+    own = motor_table(Path("x.bin"), esc, {0: 1, 1: 2}, commands, {}, {})
+    m1 = own.for_motor(1)
+    fresh = np.isclose(m1["time_s"] % 0.1, 0.002)  # 2 ms after a command
+    stale = np.isclose(m1["time_s"] % 0.1, 0.092)  # 92 ms after one
+    assert fresh.sum() > 5 and stale.sum() > 5
+    np.testing.assert_allclose(m1["pairing_s"][fresh & (m1["time_s"] < 1.4)], 0.002, atol=1e-9)
+    np.testing.assert_allclose(m1["pairing_s"][stale & (m1["time_s"] < 1.4)], 0.092, atol=1e-9)
+    late = m1["time_s"] > 1.4
+    np.testing.assert_allclose(m1["pairing_s"][late], m1["time_s"][late] - 1.4, atol=1e-9)
+    assert own.meta["pairing_s"] == pytest.approx(np.percentile(own["pairing_s"], 95))
+    # stamped by their message: at least the interval of the motor's messages (10 ms), a first 0
+    tlog = motor_table(Path("x.tlog"), esc, {0: 1, 1: 2}, commands, {}, {"sample_time_uncertainty_s": 0.01})
+    m1 = tlog.for_motor(1)
+    np.testing.assert_allclose(m1["pairing_s"][1:], np.maximum(own.for_motor(1)["pairing_s"][1:], 0.01))
+    assert m1["pairing_s"][0] == pytest.approx(0.002)  # its command's age: no message before it
+    # a stale row (repeated packet: no speed or current) is a message all the same
+    gappy = EscSamples(
+        esc.time_s[::2],
+        esc.slot[::2],
+        esc.omega_rad_s[::2].copy(),
+        esc.current_a[::2].copy(),
+        esc.bus_voltage_v[::2],
+    )
+    gappy.omega_rad_s[10:20] = np.nan
+    gappy.current_a[10:20] = np.nan
+    table = motor_table(Path("y.tlog"), gappy, {0: 1}, commands, {}, {"sample_time_uncertainty_s": 0.01})
+    assert table["pairing_s"][20] == pytest.approx(0.01)
+
+
+def test_message_intervals_in_parts_are_the_whole() -> None:
+    """The interval of a signal's entries (a motor's ESC messages), causal: the mean over the last second
+    (the time since the entry before the window's first, over the window's entries); with no window, the
+    time since the entry before. Parts split anywhere give the whole's values; entries of several signals
+    interleaved, ties (several messages with one stamp) kept in order."""
+    from mav_motor_health.telemetry.assemble import MessageIntervals
+
+    rng = np.random.default_rng(7)
+    t = np.sort(np.round(rng.uniform(0, 10, 400), 2))  # ties among them
+    signal = rng.integers(0, 6, t.size)
+    untied = np.sort(rng.uniform(0, 10, 400))
+    plain = MessageIntervals(6, window_s=0.0).since_previous(untied, signal)
+    whole = MessageIntervals(6).since_previous(t, signal)
+    for k in range(6):
+        mine = signal == k
+        np.testing.assert_allclose(plain[mine][1:], np.diff(untied[mine]))
+        assert np.isnan(plain[mine][0]) and np.isnan(whole[mine][0])
+        times = t[mine]
+        for i in range(1, times.size):  # brute force: the mean of the intervals ending in the window
+            first = max(int(np.searchsorted(times, times[i] - 1.0, side="left")), 0)
+            first = min(first, i)
+            expected = (times[i] - times[first - 1]) / (i - first + 1) if first else (times[i] - times[0]) / i
+            assert whole[mine][i] == pytest.approx(expected, abs=1e-12)
+    for cuts in ([1], [5, 17, 200], list(range(1, t.size))):
+        for window_s, times, want in ((1.0, t, whole), (0.0, untied, plain)):
+            parts = MessageIntervals(6, window_s)
+            got = np.concatenate(
+                [parts.since_previous(times[a:b], signal[a:b]) for a, b in zip([0, *cuts], [*cuts, t.size])]
+            )
+            np.testing.assert_array_equal(got, want)
+
+
+def test_the_guards_window_is_the_oldest_command_a_source_pairs() -> None:
+    from mav_motor_health.diagnosis.pairing import PAIRING_WINDOW_S
+    from mav_motor_health.telemetry.assemble import COMMAND_MAX_AGE_S
+
+    assert PAIRING_WINDOW_S == COMMAND_MAX_AGE_S

@@ -128,7 +128,8 @@ def test_a_loosely_paired_gusty_log_is_not_misread(tmp_path: Path) -> None:
     """A healthy gusty flight streamed at 10 Hz (.tlog): paired that loosely, the balance rule announced
     false faults (14 in this minute, docs/flight.md section 6). With the log's pairing weighed the current
     is set aside where the commands move fast and such samples are not judged: no false event. Without
-    the reader's pairing (the same table, meta removed) the false events come back."""
+    the samples' pairing (the same table, its ``pairing_s`` column and meta removed) the false events
+    come back."""
     from mav_motor_health.diagnosis import diagnose
     from mav_motor_health.diagnosis.plausibility import SensorIssue
     from mav_motor_health.evaluation.score import score
@@ -149,7 +150,8 @@ def test_a_loosely_paired_gusty_log_is_not_misread(tmp_path: Path) -> None:
     assert table.meta["pairing_s"] == pytest.approx(0.1, rel=0.05)
     motor, flight = load_motor_params(), load_profile("flight")
     weighed = diagnose(table, motor, flight)
-    unweighed = diagnose(TelemetryTable(table.columns, source=table.source), motor, flight)
+    unpaired = {name: table[name] for name in table.names if name != "pairing_s"}
+    unweighed = diagnose(TelemetryTable(unpaired, source=table.source), motor, flight)
     truth = scenario.truth()
     false_weighed = score({c: weighed[c] for c in weighed.names}, truth).false_events
     false_unweighed = score({c: unweighed[c] for c in unweighed.names}, truth).false_events

@@ -3,7 +3,8 @@
 :class:`HealthMonitor` feeds the samples (table columns from :class:`~.samples.SampleAssembler`) to the same
 :class:`~mav_motor_health.diagnosis.pipeline.StreamingDiagnoser` (so to ``diagnose_motor``) that replay
 uses in batch, and reports a :class:`StateChange` whenever the *published* state of a motor changes. The
-published state is the core's announced state, except ``NO_DATA`` while a motor has sent nothing for
+published state is the core's announced state (each sample weighed with its own ``pairing_s``, as replay
+weighs its table's column), except ``NO_DATA`` while a motor has sent nothing for
 ``stale_s`` (the core cannot announce silence: a missing sample never reaches it). No I/O, no clock:
 callers pass times on the link's clock.
 """
@@ -126,7 +127,13 @@ class HealthMonitor:
         motor = np.asarray(columns["motor"], dtype=np.int64)
         if motor.size == 0:
             return [], []
-        cols = {name: np.asarray(columns[name], dtype=float) for name in _SAMPLE_COLUMNS if name != "motor"}
+        cols = {
+            name: np.asarray(columns[name], dtype=float)
+            for name in _SAMPLE_COLUMNS
+            if name != "motor" and (name in columns or name != "pairing_s")
+        }
+        # each sample's pairing with its command, which the balance rule weighs (None: of its own instant)
+        pairing = cols.get("pairing_s")
         motors = list(dict.fromkeys(motor.tolist()))  # in the order they first come
         for number in motors:
             if number not in self.status:
@@ -158,6 +165,7 @@ class HealthMonitor:
                 command=arrays["throttle"],
                 sensor_current_a=arrays["esc_current_a"],
                 extra_flags=sum_flags[index],
+                pairing_s=None if pairing is None else pairing[index],
                 context=arrays,  # what a model with fitted effects may read (temperatures, throttle...)
             )
         # every motor's samples in one core call (the same results as motor by motor)

@@ -8,7 +8,9 @@ value at or before the sample's time, none older than 1 s for commands, 5 s for 
 from batch to batch). What comes out is the telemetry table's columns for the fresh samples: a repeated
 or empty ESC slot is no sample (a silent ESC yields none, and the monitor declares it ``NO_DATA``); a
 sample whose command is stale has no throttle, motor voltage or motor current (NaN), as in replay's
-table. No I/O here: messages are anything with pymavlink's attributes and ``get_type()``.
+table. Each sample's ``pairing_s`` (how far apart it and its command may be, which the balance rule
+weighs) is replay's column, worked out from the messages so far (telemetry/assemble.py). No I/O here:
+messages are anything with pymavlink's attributes and ``get_type()``.
 """
 
 from __future__ import annotations
@@ -44,6 +46,10 @@ class MotorSample:
     esc_temp_c: float
     #: the battery monitor's latest current [A] (NaN: none reported)
     battery_current_a: float = math.nan
+    #: how far apart the sample and its command may be [s] (telemetry/assemble.py, replay's column of the
+    #: same name: its command's age or the interval of the motor's ESC messages, the larger); 0: the
+    #: command of the sample's own instant, as the simulator pairs them
+    pairing_s: float = 0.0
 
     def row(self) -> dict[str, float]:
         """The sample as a table row (column name → value)."""
@@ -58,6 +64,7 @@ class MotorSample:
             "esc_current_a": self.esc_current_a,
             "esc_temp_c": self.esc_temp_c,
             "battery_current_a": self.battery_current_a,
+            "pairing_s": self.pairing_s,
         }
 
 
@@ -106,7 +113,7 @@ class SampleAssembler:
         (each message's motors in order), with each one's ``position`` in the stream."""
         waiting, self._waiting, self.waiting = self._waiting, {}, 0
         batch = {kind: columns_of(kind, *group) for kind, group in waiting.items()}
-        return self.pairing.pair(self.reader.read(batch).fresh_rows())
+        return self.pairing.pair(self.reader.read(batch))  # stale rows count for the pairing, then go
 
     def feed(self, msg: Any, time_s: float) -> list[MotorSample]:
         """Take one message; returns the motor samples it completes (only ESC telemetry makes any)."""

@@ -88,6 +88,12 @@ class MotorBatch:
     sensor_current_a: NDArray[np.float64] | None = None
     extra_flags: NDArray[np.int16] | None = None
     context: Mapping[str, NDArray[np.float64]] | None = None
+    #: each sample's pairing with its command [s] (the table's ``pairing_s``; None: of its own instant)
+    pairing_s: NDArray[np.float64] | None = None
+
+
+#: a source's pairing of samples with commands [s]: one number for all samples, or one per sample
+Pairing = float | NDArray[np.float64] | None
 
 
 def diagnose_motor(
@@ -104,7 +110,7 @@ def diagnose_motor(
     sensor_current_a: NDArray[np.float64] | None = None,
     extra_flags: NDArray[np.int16] | None = None,
     context: Mapping[str, NDArray[np.float64]] | None = None,
-    pairing_s: float | None = None,
+    pairing_s: Pairing = None,
     noise: BandNoise | None = None,
 ) -> tuple[dict[str, NDArray], MotorCarry]:
     """Diagnose one motor's samples (increasing time); returns result columns and the new carry.
@@ -115,9 +121,9 @@ def diagnose_motor(
     samples' other columns (temperatures, altitude...), which a model with fitted effects
     (``params.effects``) reads; the base model ignores it, and so does the balance rule, which checks the
     base equations (a fitted effect's extra terms are not yet part of its balances). ``pairing_s`` is how
-    far apart the source may have paired each sample and its command (a log's ``meta["pairing_s"]``;
-    None or 0: the command of the sample's own instant), which the balance rule weighs
-    (:mod:`.pairing`). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
+    far apart the source may have paired each sample and its command [s], which the balance rule weighs
+    (:mod:`.pairing`): one value per sample (a log table's ``pairing_s`` column, the live agent's samples'),
+    or one number for all (None or 0: the command of the sample's own instant). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
     bands from (:mod:`.noise`).
     """
 
@@ -137,7 +143,7 @@ def diagnose_motor(
         sensor_current_a=row(sensor_current_a),
         extra_flags=row(extra_flags, np.int16),
         context=None if context is None else {k: np.asarray(v).reshape(1, -1) for k, v in context.items()},
-        pairing_s=pairing_s,
+        pairing_s=pairing_s if pairing_s is None or np.ndim(pairing_s) == 0 else row(np.asarray(pairing_s)),
         noise=None if noise is None else [noise],
     )
     return {name: values[0] for name, values in cols.items()}, new
@@ -158,13 +164,13 @@ def diagnose_motors(
     sensor_current_a: NDArray[np.float64] | None = None,
     extra_flags: NDArray[np.int16] | None = None,
     context: Mapping[str, NDArray[np.float64]] | None = None,
-    pairing_s: float | None = None,
+    pairing_s: Pairing = None,
     noise: Sequence[BandNoise] | None = None,
 ) -> tuple[dict[str, NDArray], list[MotorCarry]]:
     """:func:`diagnose_motor` for several motors of one model at once: one row of samples per motor.
 
     The arguments are 2-D (motors × samples), each row one motor's samples in increasing time, with its
-    own carry in ``given_carries`` (None: a new motor). Rows may hold different numbers of samples
+    own carry in ``given_carries`` (None: a new motor); ``pairing_s`` one number or 2-D like the samples. Rows may hold different numbers of samples
     (``lengths``; None: all of the columns): the rest of a row is padding after its samples, which cannot
     change their results (every rule looks back only) and whose results mean nothing. Every step runs once for all rows, so a few
     samples of six motors cost about what a few samples of one did. Returns 2-D result columns and the
@@ -195,7 +201,9 @@ def diagnose_motors(
         sensor_current_a=floats(sensor_current_a),
         extra_flags=extra_flags,
         context=context,
-        pairing_s=pairing_s,
+        pairing_s=pairing_s
+        if pairing_s is None or np.ndim(pairing_s) == 0
+        else floats(np.asarray(pairing_s)),
         noise=noise,
     )
     new: list[dict[str, Any]] = [{} for _ in range(rows)]
@@ -322,6 +330,9 @@ def diagnose(
         "detection_level": np.full(n, np.nan),
     }
     motors = ordered["motor"]
+    # each sample's pairing with its command (a log's column, telemetry/assemble.py); a table without
+    # the column: the meta's one number where a source gives one, else none (the command of the instant)
+    pairing_column = ordered.get("pairing_s")
     pairing = table.meta.get("pairing_s")
 
     def part(values: NDArray | None, sel: NDArray) -> NDArray | None:
@@ -360,7 +371,11 @@ def diagnose(
             sensor_current_a=part(sensor_current, sel),
             extra_flags=part(sum_flags, sel),
             context=context,
-            pairing_s=None if pairing is None else float(pairing),
+            pairing_s=(
+                pairing_column[sel]
+                if pairing_column is not None
+                else (None if pairing is None else float(pairing))
+            ),
             noise=None if noise is None else noise.get(int(motor)),
         )
         for name, values in cols.items():
@@ -528,12 +543,12 @@ class StreamingDiagnoser:
         sensor_current_a: NDArray[np.float64] | None = None,
         extra_flags: NDArray[np.int16] | None = None,
         context: Mapping[str, NDArray[np.float64]] | None = None,
-        pairing_s: float | None = None,
+        pairing_s: Pairing = None,
     ) -> dict[str, NDArray]:
         """Diagnose a few new samples of one motor at once (same results as one by one, less overhead).
 
-        ``pairing_s``: how far apart the source pairs samples and commands (None: at the same instant;
-        the live agent pairs each ESC packet with the command of its message).
+        ``pairing_s``: how far apart the source pairs each sample and its command (one per sample, as the
+        live agent's samples give it, or one number; None: at the same instant).
         """
         motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
 
@@ -567,7 +582,7 @@ class StreamingDiagnoser:
         """Diagnose a few new samples of several motors in one core call (:func:`diagnose_motors`): the
         same results as :meth:`update_many` motor by motor, for about the cost of one motor. Motors with
         different models, a model with fitted effects, or batches with different columns are diagnosed
-        motor by motor."""
+        motor by motor. A batch's own ``pairing_s`` (per sample) takes the place of the call's."""
         groups: dict[tuple[int, tuple[bool, ...]], list[int]] = {}
         alone: list[list[int]] = []
         for motor, batch in batches.items():
@@ -577,7 +592,7 @@ class StreamingDiagnoser:
                 continue
             given = tuple(
                 getattr(batch, name) is not None
-                for name in ("bus_voltage_v", "command", "sensor_current_a", "extra_flags")
+                for name in ("bus_voltage_v", "command", "sensor_current_a", "extra_flags", "pairing_s")
             )
             groups.setdefault((id(motor_params), given), []).append(motor)
         results: dict[int, dict[str, NDArray]] = {}
@@ -595,7 +610,7 @@ class StreamingDiagnoser:
                     sensor_current_a=b.sensor_current_a,
                     extra_flags=b.extra_flags,
                     context=b.context,
-                    pairing_s=pairing_s,
+                    pairing_s=b.pairing_s if b.pairing_s is not None else pairing_s,
                 )
                 continue
             results.update(self._update_rows(motors, [batches[m] for m in motors], pairing_s))
@@ -633,7 +648,7 @@ class StreamingDiagnoser:
             command=rows("command"),
             sensor_current_a=rows("sensor_current_a"),
             extra_flags=rows("extra_flags", np.int16, 0),
-            pairing_s=pairing_s,
+            pairing_s=rows("pairing_s") if batches[0].pairing_s is not None else pairing_s,
             noise=self._noise_of(motors) if self.profile.noise_bands > 0 else None,
         )
         results = {}

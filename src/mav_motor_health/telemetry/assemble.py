@@ -15,9 +15,40 @@ Commands and context are paired with each ESC sample by previous-value hold (:cl
 last value at or before the sample's time, none older than :data:`COMMAND_MAX_AGE_S` for commands,
 :data:`CONTEXT_MAX_AGE_S` for context), so no value from the future is ever used. The live agent pairs
 its samples with the same class, fed batch by batch (:class:`.mavlink_messages.SamplePairing`): a
-streamed flight and its replayed .tlog give the same table. The table's ``meta`` says how closely the
-samples are paired with their commands (``command_age_s``, the held command's age, 95th percentile;
-``pairing_s``, the larger of that and the reader's ``sample_time_uncertainty_s``).
+streamed flight and its replayed .tlog give the same table.
+
+How closely each sample is paired with its command is the column ``pairing_s`` [s], one value per
+sample, worked out causally from the samples and commands before it (so the live agent, batch by batch,
+gets the values replay gets; :func:`pairing_uncertainty`):
+
+    pairing_s = max(command age, stamp uncertainty)
+
+* the *command age* is the held command's age (:class:`HeldValues`): the motor's command may have moved
+  since the command paired with the sample was sent (NaN where no command is held: no voltage either);
+* the *stamp uncertainty* is how much older than its stamp the measurement may be. Where the reader says
+  its ESC samples are stamped by the message that carried them (``sample_time_uncertainty_s`` in the
+  reader's meta: a .tlog's ESC_TELEMETRY/ESC_STATUS carry each ESC's *last* packet without its time; the
+  live agent reads the same messages), it is the interval of the motor's ESC messages: a packet the
+  message calls new came after the message before it. As the interval of one message is what the
+  reading of the link makes of it (a stalled read: one message a whole stall after the one before, the
+  rest of its read none), it is the mean over the motor's messages of the last second
+  (:class:`MessageIntervals`; stale rows — repeated packets — count as messages), the causal counterpart
+  of the reader's ``sample_time_uncertainty_s`` (the median interval over the whole log); 0 for a motor's
+  first message (nothing to compare with). Where samples carry their own time (a .bin's ESC records, a
+  ULog's ``esc_status``) it is 0.
+
+Why the larger of the two, not their sum: the stamp is the moment both are known at; the command was sent
+``age`` before it and the packet measured at most ``interval`` before it, so the two moments are both in
+the last ``max(age, interval)`` before the stamp and no further apart than that. The balance rule weighs
+each sample with the 95th percentile of the last second's values (:mod:`..diagnosis.pairing`). Why per sample and not a
+whole-log statistic: the live agent cannot know a statistic of the whole flight, and a sample paired with
+a command sent just before it is well paired whatever the others are. A source that pairs each sample
+with the command of its own instant (the simulator's table, a CSV with both) has no such column: the
+balance rule's pairing guard (:mod:`..diagnosis.pairing`) then does nothing.
+
+The table's ``meta`` keeps a whole-log summary for the readers' warnings and the report
+(``command_age_s``, the held command's age, 95th percentile; ``pairing_s``, the larger of that and the
+reader's ``sample_time_uncertainty_s``); the diagnosis uses the column.
 """
 
 from __future__ import annotations
@@ -37,13 +68,16 @@ from .table import TelemetryTable
 __all__ = [
     "COMMAND_MAX_AGE_S",
     "CONTEXT_MAX_AGE_S",
+    "INTERVAL_WINDOW_S",
     "EscSamples",
     "HeldValues",
+    "MessageIntervals",
     "Series",
     "bus_voltage_or_battery",
     "held",
     "motor_table",
     "no_esc_error",
+    "pairing_uncertainty",
 ]
 
 #: A motor command older than this is not used for a sample (the output stream stopped).
@@ -156,6 +190,72 @@ class HeldValues:
         return time_s, value
 
 
+#: how far back the interval of a motor's ESC messages is averaged [s]
+INTERVAL_WINDOW_S = 1.0
+
+
+class MessageIntervals:
+    """How often each signal's entries come (a motor's ESC messages), causally, for entries that come in
+    parts (a log: all at once; the live agent: batch by batch): per entry, the mean time between the
+    signal's entries over the last ``window_s`` (the time since the entry before the window's first, over
+    the window's number of entries), NaN for a signal's very first entry. Each signal's recent times are
+    carried, so parts give what the whole gives. Within a part the entries of one signal are taken in time
+    order (stably).
+
+    The mean over a second, not the time since the one entry before: a link stamps messages when they are
+    read, and a stalled read makes its first message look a whole stall apart from the one before and the
+    rest none; the mean over the window is the messages' interval as sent (the .tlog reader's
+    ``sample_time_uncertainty_s`` is likewise their median interval over the whole log). With
+    ``window_s`` 0, the time since the entry before (ties share it: a batch of one stamp).
+    """
+
+    def __init__(self, signals: int, window_s: float = INTERVAL_WINDOW_S) -> None:
+        self.window_s = window_s
+        #: each signal's times of the last window and the one entry before it
+        self.recent: list[NDArray[np.float64]] = [np.zeros(0) for _ in range(signals)]
+
+    def since_previous(self, time_s: ArrayLike, signal: ArrayLike) -> NDArray[np.float64]:
+        """Per entry (time, signal: 0-based), the mean interval of its signal's entries [s] (class doc)."""
+        t = np.asarray(time_s, dtype=float)
+        sig = np.asarray(signal, dtype=np.int64)
+        out = np.empty(t.shape)
+        if t.size == 0:
+            return out
+        order = np.lexsort((t, sig))  # by signal, then time; ties in the order given
+        ts, ss = t[order], sig[order]
+        bounds = np.flatnonzero(np.diff(ss)) + 1
+        means = np.empty(ts.shape)
+        for a, b in zip([0, *bounds.tolist()], [*bounds.tolist(), ts.size]):
+            carried = self.recent[int(ss[a])]
+            times = np.concatenate((carried, ts[a:b]))
+            at = np.arange(carried.size, times.size)
+            first = np.minimum(np.searchsorted(times, times[at] - self.window_s, side="left"), at)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                means[a:b] = np.where(
+                    first >= 1,
+                    (times[at] - times[np.maximum(first - 1, 0)]) / (at - first + 1),
+                    (times[at] - times[0]) / at,  # no entry before the window: from the very first
+                )
+            keep = max(int(np.searchsorted(times, times[-1] - self.window_s, side="left")) - 1, 0)
+            self.recent[int(ss[a])] = times[keep:]
+        out[order] = means
+        return out
+
+
+def pairing_uncertainty(
+    command_age_s: ArrayLike, message_interval_s: ArrayLike | None = None
+) -> NDArray[np.float64]:
+    """Each sample's pairing uncertainty [s] (the module doc): the larger of its held command's age (NaN:
+    no command, NaN out) and, where the samples are stamped by the message that carried them, the interval
+    of the motor's messages (:class:`MessageIntervals`; NaN, a first message: 0); ``message_interval_s``
+    None: samples with their own time."""
+    age = np.asarray(command_age_s, dtype=float)
+    if message_interval_s is None:
+        return age.copy()
+    interval = np.asarray(message_interval_s, dtype=float)
+    return np.maximum(age, np.where(np.isnan(interval), 0.0, interval))
+
+
 def _last_present(present: NDArray[np.bool_] | None) -> NDArray[np.int64] | None:
     """Per row (after a first row: the carried value, which counts as one) and column of ``present``, the
     last row up to it that holds a value; None when every entry is a value."""
@@ -189,13 +289,19 @@ def motor_table(
     context: Mapping[str, Series],
     meta: Mapping[str, Any],
     battery_voltage: Series | None = None,
+    stamped_by_message: bool | None = None,
 ) -> TelemetryTable:
     """The telemetry table of one log.
 
     ``motor_of_slot`` maps ESC slots to motor numbers (None: the slot drives no motor; its samples are
     dropped). ``commands`` maps a motor number to its throttle series. Where the ESC reports no voltage
-    (0 or NaN), the battery voltage stands in for ``bus_voltage_v``.
+    (0 or NaN), the battery voltage stands in for ``bus_voltage_v``. ``stamped_by_message``: the ESC
+    samples are stamped by the message that carried each ESC's last packet (the module doc; None: where
+    the reader gives a ``sample_time_uncertainty_s``, as the .tlog reader does). Every ESC row counts
+    there, a repeated packet's (no measurement) too.
     """
+    if stamped_by_message is None:
+        stamped_by_message = bool(meta.get("sample_time_uncertainty_s"))
     slots = np.asarray(esc.slot, dtype=np.int64)
     # an ESC index outside 0..31 is a damaged record (autopilots number at most 32 ESCs): dropped
     in_range = (slots >= 0) & (slots < MAX_ESC_SLOTS)
@@ -232,12 +338,16 @@ def motor_table(
         if sel.any():
             throttle[sel], command_age[sel] = held(series, time_s[sel], COMMAND_MAX_AGE_S)
     columns["throttle"] = throttle
+    interval = None
+    if stamped_by_message:
+        interval = MessageIntervals(int(motors.max(initial=0))).since_previous(time_s, motors - 1)
+    columns["pairing_s"] = pairing_uncertainty(command_age, interval)
     meta = dict(meta)
-    # How far the command paired with a sample may be from the one the motor had when it was measured:
-    # the held command's age (95th percentile), or how uncertain the sample's own time is if that is more
-    # (the reader says: a .tlog's ESC packet is up to one message interval older than its stamp). The
-    # balance rule needs them within a few milliseconds in gusty flight (docs/flight.md, section 6,
-    # "Through the logs").
+    # A summary of the pairing for the warnings and the report (the diagnosis weighs each sample's own
+    # ``pairing_s``): the held command's age (95th percentile), or how uncertain the sample's own time is if
+    # that is more (the reader says: a .tlog's ESC packet is up to one message interval older than its
+    # stamp). The balance rule needs them within a few milliseconds in gusty flight (docs/flight.md,
+    # section 6, "Through the logs").
     ages = command_age[np.isfinite(command_age)]
     if ages.size:
         meta["command_age_s"] = float(np.percentile(ages, 95))

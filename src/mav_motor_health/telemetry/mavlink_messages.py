@@ -52,8 +52,10 @@ from .assemble import (
     CONTEXT_MAX_AGE_S,
     MAX_ESC_SLOTS,
     HeldValues,
+    MessageIntervals,
     Series,
     bus_voltage_or_battery,
+    pairing_uncertainty,
 )
 
 __all__ = [
@@ -504,22 +506,32 @@ class SamplePairing:
     saying "not measured" is the latest word: no value). A message that carries no command for a motor
     leaves that motor's last command in force, as the .tlog reader's command series skip it. Where the ESC
     measures no voltage the battery's stands in; ``voltage_v``/``current_a`` come from
-    :func:`.mavlink_esc.motor_inputs`, as in the table. Rows come out message by message, each message's in
-    motor order, with their ``position``.
+    :func:`.mavlink_esc.motor_inputs`, as in the table. Each sample's ``pairing_s`` is the table's
+    (:func:`.assemble.pairing_uncertainty`): its command's age or, if more, the interval of its motor's
+    ESC messages over the last second (:class:`.assemble.MessageIntervals`, carried across calls: a message
+    carries each ESC's last packet, which came after the message before). Rows come out message by message, each
+    message's in motor order, with their ``position``.
     """
 
     def __init__(self) -> None:
         self.commands = HeldValues(MAX_MOTORS, COMMAND_MAX_AGE_S)  # motor m: signal m - 1
         self.battery = HeldValues(2, CONTEXT_MAX_AGE_S)  # voltage [V], current [A]
+        self.messages = MessageIntervals(MAX_MOTORS)  # motor m: signal m - 1
 
     def pair(self, reading: MotorReading) -> dict[str, NDArray[Any]]:
-        """The table columns of the reading's ESC rows (and their ``position``)."""
+        """The table columns of the reading's fresh ESC rows (and their ``position``). Pass the whole
+        reading, stale rows included: they count for the interval of a motor's messages (as in
+        the .tlog table, which keeps them), and are left out here."""
+        interval = self.messages.since_previous(reading.time_s, reading.motor - 1)
+        if not reading.fresh.all():
+            interval = interval[reading.fresh]
+            reading = reading.fresh_rows()
         position, motor, time_s = reading.position, reading.motor, reading.time_s
         throttle = reading.throttle
         if len(reading.command_position):  # a column per motor number (motor m: column m - 1)
             throttle = np.full((len(reading.command_position), MAX_MOTORS), np.nan)
             throttle[:, reading.command_motors - 1] = reading.throttle
-        command, _ = self.commands.hold(
+        command, command_age = self.commands.hold(
             reading.command_time_s, throttle, time_s, motor - 1, present=np.isfinite(throttle)
         )
         battery, _ = self.battery.hold(
@@ -542,6 +554,7 @@ class SamplePairing:
             "esc_temp_c": reading.esc_temp_c,
             "battery_voltage_v": battery_v,
             "battery_current_a": battery_a,
+            "pairing_s": pairing_uncertainty(command_age, interval),
             "position": position,
         }
         if len(position) > 1:

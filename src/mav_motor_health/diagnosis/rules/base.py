@@ -75,7 +75,9 @@ class Frame:
     sensor_current_a: NDArray[np.float64] | None = None
     extra_flags: NDArray[np.int16] | None = None
     context: Mapping[str, NDArray[np.float64]] | None = None
-    pairing_s: float | None = None
+    #: how far apart the source may have paired each sample and its command [s]: one number for all, or
+    #: an array of the rows' shape (one per sample); None or 0: the command of the sample's own instant
+    pairing_s: float | NDArray[np.float64] | None = None
     noise: Sequence[BandNoise] | None = None
 
     # the comparison (a CompareRule)

@@ -1,7 +1,9 @@
 """A command paired loosely with its sample (:mod:`..pairing`): where the voltage error it could cause is a
 sizeable part of the speed band the current is not used, where it is a sizeable part of the speed-only band
 nothing is judged. Applies to a comparison with a moving low-pass (the balance rule) on a source that says
-how loosely it pairs (``pairing_s``)."""
+how loosely it pairs (``pairing_s``: one number, or one per sample — a log table's column, the live
+agent's samples' —, each sample then weighed with the 95th percentile of the last second's; per sample
+the guard always runs, so that a stream split anywhere gives what the whole gives)."""
 
 from __future__ import annotations
 
@@ -31,14 +33,15 @@ class PairingGuard(Rule):
         return PairingCarry()
 
     def judge(self, frame: Frame, carries: list[PairingCarry]) -> list[PairingCarry]:
-        if frame.low_pass_s is None or not frame.pairing_s:
+        pairing = frame.pairing_s
+        if frame.low_pass_s is None or pairing is None or (np.ndim(pairing) == 0 and not pairing):
             return carries
         error, carries = pairing_error_rows(
             frame.params,
             frame.time_s,
             frame.voltage_v,
             frame.omega_model_rad_s,
-            frame.pairing_s,
+            pairing,
             frame.low_pass_s,
             carries,
             frame.ragged,
