@@ -200,3 +200,71 @@ def test_a_stall_is_named_however_wide_the_vehicles_noise_band(paper_motor) -> N
     result = diagnose(table, paper_motor, load_profile("flight_vehicle"), noisy)
     stalled = result["announced"][(result["motor"] == 1) & (result["time_s"] > 31.0)]
     assert (stalled == MotorState.F4_2).mean() > 0.9
+
+
+def test_each_motors_healthy_offset_is_measured_and_counted_in_its_noise() -> None:
+    """A model shared by the six motors leaves each its own offset on the healthy flight: measured as the
+    median deviation, the spread measured around it, and the offset's size added to the quiet σ (the
+    model is off by that much at the flight's operating points, and may be by as much elsewhere)."""
+    table = diagnosed_table(np.random.default_rng(23), {1: 6000, 2: 6000})
+    cols = {n: np.asarray(table[n]) for n in table.names}
+    motor2 = cols["motor"] == 2
+    cols["omega_judged_rad_s"] = cols["omega_judged_rad_s"] + np.where(motor2, -12.0, 0.0)
+    cols["current_judged_a"] = cols["current_judged_a"] + np.where(motor2, 0.8, 0.0)
+    noise = measure_band_noise(TelemetryTable(cols))
+    assert noise[1].speed_offset_rad_s == pytest.approx(0.0, abs=0.5)
+    assert noise[2].speed_offset_rad_s == pytest.approx(-12.0, abs=0.5)
+    assert noise[2].current_offset_a == pytest.approx(0.8, abs=0.03)
+    # the spread is the same around either centre; the offset adds to the quiet σ only
+    assert noise[1].speed_rad_s == pytest.approx(5.0, rel=0.25)
+    assert noise[2].speed_rad_s == pytest.approx(np.hypot(noise[1].speed_rad_s, 12.0), rel=0.1)
+    assert noise[2].current_a == pytest.approx(np.hypot(noise[1].current_a, 0.8), rel=0.1)
+    assert noise[2].speed_rad_s_per_v == pytest.approx(noise[1].speed_rad_s_per_v, rel=0.2)
+
+
+def test_the_model_each_motor_is_judged_against_carries_its_healthy_offset(paper_motor, tmp_path) -> None:
+    table = sources.read(FLIGHT)
+    profile = load_profile("flight_vehicle")
+    plain = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=3.8) for m in range(1, 7)}
+    offset = dict(plain)
+    offset[3] = dataclasses.replace(plain[3], speed_offset_rad_s=-60.0, current_offset_a=2.5)
+    a = diagnose(table, paper_motor, profile, plain)
+    b = diagnose(table, paper_motor, profile, offset)
+    m3 = a["motor"] == 3
+    np.testing.assert_allclose(b["omega_model_rad_s"][m3], a["omega_model_rad_s"][m3] - 60.0)
+    np.testing.assert_allclose(b["current_model_a"][m3], a["current_model_a"][m3] + 2.5)
+    np.testing.assert_array_equal(b["omega_judged_rad_s"], a["omega_judged_rad_s"])  # the measurement
+    np.testing.assert_array_equal(b["state"][~m3], a["state"][~m3])  # other motors untouched
+    # judged against a model 60 rad/s slower with 2.5 A more current (beyond the bands), motor 3 reads faster with less
+    # current than its model: not the healthy motor it is against its own model
+    assert np.mean(b["state"][m3 & b["steady"]] != 0) > np.mean(a["state"][m3 & a["steady"]] != 0) + 0.3
+    # the offsets go through the vehicle file, signed; an older file without them reads as none
+    vehicle = VehicleParams(motor=paper_motor, noise={m: n.as_mapping() for m, n in offset.items()})
+    path = tmp_path / "vehicle.toml"
+    path.write_text(dump_vehicle_params(vehicle), encoding="utf-8")
+    assert band_noise_of(load_vehicle_params(path).noise)[3] == offset[3]
+    older = path.read_text(encoding="utf-8")
+    older = "\n".join(line for line in older.splitlines() if "_offset_" not in line) + "\n"
+    path.write_text(older, encoding="utf-8")
+    assert band_noise_of(load_vehicle_params(path).noise)[3].speed_offset_rad_s == 0.0
+
+
+def test_in_busier_air_than_the_identification_flight_nothing_is_judged_but_a_stall_is_named(paper_motor):
+    table = sources.read(FLIGHT)
+    profile = load_profile("flight_vehicle")
+    known = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=3.8) for m in range(1, 7)}
+    everywhere = diagnose(table, paper_motor, profile, known)
+    activity = everywhere["input_activity_v"]
+    calm_flight = float(np.quantile(activity[everywhere["steady"]], 0.5))  # a flight in half as busy air
+    limited = {m: dataclasses.replace(n, activity_high_v=calm_flight) for m, n in known.items()}
+    guarded = diagnose(table, paper_motor, profile, limited)
+    busier = activity > (1.0 + profile.range_margin) * calm_flight
+    stall = np.isin(guarded["state"], (MotorState.F2_1, MotorState.F4_2, MotorState.STALLED))
+    assert busier[everywhere["steady"]].mean() > 0.3
+    assert not guarded["steady"][busier & ~stall].any()
+    np.testing.assert_array_equal(guarded["steady"][~busier], everywhere["steady"][~busier])
+    stalled = guarded["announced"][(guarded["motor"] == 1) & (guarded["time_s"] > 31.0)]
+    assert (stalled == MotorState.F4_2).mean() > 0.9
+    # measured: the busiest input of the healthy flight's judged samples
+    table = diagnosed_table(np.random.default_rng(5), {1: 4000})
+    assert measure_band_noise(table)[1].activity_high_v == pytest.approx(0.99, abs=0.01)

@@ -132,6 +132,13 @@ def test_without_a_trusted_current_only_the_speed_directions_have_evidence() -> 
     assert trusted[[slow, fast]].sum() == 0 and trusted.sum() > 0
     assert alone[slow, 0] == 5.0 and alone[fast, 1] == 5.0
     assert alone.sum() == 10.0
+    # measured against the wider speed-only band (here 2.5 times the band: the tree's for speed alone),
+    # the same departures are a 2-sigma one: a model error it cannot tell from a fault without the current
+    wider = direction_evidence(z[0], z[1], np.array([False, False]), 4.5, z_omega_alone=z[0] / 2.5)
+    assert wider[slow, 0] == 2.0 and wider[fast, 1] == 2.0
+    np.testing.assert_array_equal(
+        direction_evidence(z[0], z[1], np.array([True, True]), 4.5, z_omega_alone=z[0] / 2.5), trusted
+    )
 
 
 def test_the_profile_carries_the_test_and_refuses_it_without_noise_bands(tmp_path) -> None:

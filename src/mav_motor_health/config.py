@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from .diagnosis.detection import SequentialRule
-from .diagnosis.noise import NOISE_KEYS, band_noise_of
+from .diagnosis.noise import NOISE_KEYS, SIGNED_NOISE_KEYS, band_noise_of
 from .diagnosis.plausibility import PlausibilityRule
 from .diagnosis.profile import PersistenceRule, ThresholdProfile
 from .diagnosis.rules.base import CompareRule, check_settings, compare_rule
@@ -522,7 +522,7 @@ def load_vehicle_params(name_or_path: str | Path = DEFAULT_MOTOR) -> VehiclePara
     noise: dict[int, dict[str, float]] = {}
     for number, section in _motor_tables(top, "noise", path):
         noise[number] = {
-            key: section.number(key, minimum=0.0, unit=unit)
+            key: section.number(key, minimum=None if key in SIGNED_NOISE_KEYS else 0.0, unit=unit)
             for key, unit in (("voltage_v", "V"), ("torque_nm", "N*m"), *NOISE_KEYS.items())
             if key in section.data
         }

@@ -166,12 +166,15 @@ def direction_evidence(
     z_current: NDArray[np.float64],
     current_trusted: NDArray[np.bool_],
     bands_sigmas: float,
+    z_omega_alone: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Each sample's evidence for each of :data:`DIRECTIONS` (first axis), in σ, ≥ 0.
 
     ``z_omega``, ``z_current``: the deviations in σ; ``bands_sigmas``: the tree's band in σ (its "above
     the band" and "below the band" gate the directions as the tree does). Without a trusted current, only
-    SLOW and FAST have evidence; with one, only the four others."""
+    SLOW and FAST have evidence, from ``z_omega_alone`` (the speed deviation in units of the speed-only
+    band's σ: without the current a model error cannot be told from a fault, and the tree asks for the
+    wider band there too; None: ``z_omega``); with one, only the four others."""
     zw = np.nan_to_num(z_omega)
     zi = np.where(current_trusted, np.nan_to_num(z_current), 0.0)
     n = bands_sigmas
@@ -182,8 +185,9 @@ def direction_evidence(
     out[2] = np.maximum(np.minimum(zw, -zi), 0.0)  # F3.1: faster with less current
     out[3] = np.where(zi >= -n, np.maximum(zw, 0.0), 0.0)  # UNKNOWN: faster, current not below
     out[:4] = np.where(current_trusted, out[:4], 0.0)
-    out[4] = np.where(current_trusted, 0.0, np.maximum(-zw, 0.0))  # SLOW (speed only)
-    out[5] = np.where(current_trusted, 0.0, np.maximum(zw, 0.0))  # FAST (speed only)
+    alone = zw if z_omega_alone is None else np.nan_to_num(z_omega_alone)
+    out[4] = np.where(current_trusted, 0.0, np.maximum(-alone, 0.0))  # SLOW (speed only)
+    out[5] = np.where(current_trusted, 0.0, np.maximum(alone, 0.0))  # FAST (speed only)
     return out
 
 

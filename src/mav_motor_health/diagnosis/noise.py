@@ -16,6 +16,21 @@ divided by 2.576 (where a Gaussian's 99th percentile of |x| lies), because the t
 events; σ₀ and c come from a non-negative least-squares fit of σ² on a² over the bins. A motor with too
 few judged samples of its own takes the vehicle's (all motors pooled): the six motors share one type.
 
+**Each motor's offset.** One model fitted over six motors leaves each its own offset: on a healthy flight
+a motor's deviations are centred on it, not on zero (on a 24-kg world, ±1.5 rad/s and +2–3 A, for the
+heavily loaded motors of an asymmetric frame in one direction and the light ones in the other). The
+offset is measured too (the median deviation of the judged samples, ``speed_offset_rad_s``,
+``current_offset_a``), the model each motor is judged against carries it (:mod:`.rules.offsets`), and σ
+is measured around it. But the offset is known at the flight's operating points only; in other air or
+another manoeuvre the model may be off by as much the other way. So its size is added to the quiet σ,
+in quadrature: σ₀² ← σ₀² + offset². A motor the model describes well keeps its narrow bands; one it
+describes badly gets bands as wide as the model's error, which identification measured, not guessed.
+
+**The conditions the noise was measured in.** σ(a) is measured up to the busiest input of the healthy
+flight (``activity_high_v``, the 99th percentile of its judged samples' activity); beyond it, in air
+rougher than the flight's, σ(a) would be an extrapolation, and the samples are not judged (the profile's
+``range_margin`` widens the limit as it widens the speed range; a stall is still named).
+
 A profile then sets ``noise_bands = n``: the bands are n·σ(a) of each motor, a dimensionless number that
 is the same for every vehicle. A vehicle file without the noise cannot be diagnosed with such a profile;
 :func:`require_noise` says which key is missing and how to get it.
@@ -47,7 +62,12 @@ NOISE_KEYS = {
     "current_typical_a": "A",
     "omega_low_rad_s": "rad/s",
     "omega_high_rad_s": "rad/s",
+    "speed_offset_rad_s": "rad/s",
+    "current_offset_a": "A",
+    "activity_high_v": "V",
 }
+#: the keys that may be negative (offsets from the model)
+SIGNED_NOISE_KEYS = ("speed_offset_rad_s", "current_offset_a")
 #: the identified speed range: these shares of the judged samples' model speeds lie inside it
 RANGE_SHARES = (0.01, 0.99)
 #: the share of |deviation| below the measured tail, and where a Gaussian's lies (in σ)
@@ -77,6 +97,14 @@ class BandNoise:
     #: the model was checked against this vehicle; NaN: not known
     omega_low_rad_s: float = math.nan
     omega_high_rad_s: float = math.nan
+    #: the motor's healthy offset from the identified model: the median deviation of the judged samples
+    #: (a model shared by six motors, fitted over all of them, leaves each its own offset); the bands
+    #: are centred on it (:mod:`.rules.offsets`); 0: none measured
+    speed_offset_rad_s: float = 0.0
+    current_offset_a: float = 0.0
+    #: the input activity the healthy flight reached (99th percentile of the judged samples'): σ(a) was
+    #: measured up to there, and is an extrapolation beyond; NaN: not known
+    activity_high_v: float = math.nan
 
     def sigmas(self, activity_v: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """σ of the speed [rad/s] and current [A] deviations at each input activity [V]."""
@@ -98,6 +126,9 @@ class BandNoise:
             "current_typical_a": self.current_typical_a,
             "omega_low_rad_s": self.omega_low_rad_s,
             "omega_high_rad_s": self.omega_high_rad_s,
+            "speed_offset_rad_s": self.speed_offset_rad_s,
+            "current_offset_a": self.current_offset_a,
+            "activity_high_v": self.activity_high_v,
         }
 
     @classmethod
@@ -115,19 +146,39 @@ class BandNoise:
             current_typical_a=float(values.get("current_typical_a", math.nan)),
             omega_low_rad_s=float(values.get("omega_low_rad_s", math.nan)),
             omega_high_rad_s=float(values.get("omega_high_rad_s", math.nan)),
+            speed_offset_rad_s=float(values.get("speed_offset_rad_s", 0.0)),
+            current_offset_a=float(values.get("current_offset_a", 0.0)),
+            activity_high_v=float(values.get("activity_high_v", math.nan)),
         )
 
-    def known(self, omega_model_rad_s: ArrayLike, margin: float) -> NDArray[np.bool_]:
+    def known(
+        self, omega_model_rad_s: ArrayLike, margin: float, activity_v: ArrayLike | None = None
+    ) -> NDArray[np.bool_]:
         """Where the model speed lies in the range the healthy flight covered, widened by ``margin`` (a
-        share of the range's ends); everywhere where the range is not known."""
+        share of the range's ends), and the input activity (where given) is at most the flight's highest,
+        widened alike; everywhere where a range is not known."""
         w = np.asarray(omega_model_rad_s, dtype=float)
-        if not (math.isfinite(self.omega_low_rad_s) and math.isfinite(self.omega_high_rad_s)):
-            return np.ones(w.shape, dtype=bool)
-        return (w >= (1.0 - margin) * self.omega_low_rad_s) & (w <= (1.0 + margin) * self.omega_high_rad_s)
+        inside = np.ones(w.shape, dtype=bool)
+        if math.isfinite(self.omega_low_rad_s) and math.isfinite(self.omega_high_rad_s):
+            inside &= (w >= (1.0 - margin) * self.omega_low_rad_s) & (
+                w <= (1.0 + margin) * self.omega_high_rad_s
+            )
+        if activity_v is not None and math.isfinite(self.activity_high_v):
+            inside &= (
+                np.nan_to_num(np.asarray(activity_v, dtype=float)) <= (1.0 + margin) * self.activity_high_v
+            )
+        return inside
 
 
 def _tail_sigma(deviation: NDArray[np.float64]) -> float:
     return float(np.quantile(np.abs(deviation), TAIL_SHARE) / TAIL_SIGMAS)
+
+
+def _with_offset(sigma: float, offset: float) -> float:
+    """The quiet σ with the motor's offset added (in quadrature): how far the model is off for this motor
+    is known at the identification flight's operating points only, and elsewhere it may be off by as much
+    in another direction (module doc)."""
+    return math.hypot(sigma, offset)
 
 
 def _fit_growth(activity: NDArray[np.float64], deviation: NDArray[np.float64]) -> tuple[float, float]:
@@ -176,13 +227,30 @@ def measure_band_noise(
     motors = column("motor", np.int64)
 
     def noise_of(speed_rows: NDArray[np.bool_], current_rows: NDArray[np.bool_]) -> BandNoise:
-        s0, sc = _fit_growth(activity[speed_rows], dw[speed_rows])
-        c0, cc, typical = math.nan, 0.0, math.nan
+        w0 = float(np.median(dw[speed_rows]))
+        s0, sc = _fit_growth(activity[speed_rows], dw[speed_rows] - w0)
+        s0 = _with_offset(s0, w0)
+        c0, cc, typical, i0 = math.nan, 0.0, math.nan, 0.0
         if np.count_nonzero(current_rows) >= MIN_MOTOR_SAMPLES:
-            c0, cc = _fit_growth(activity[current_rows], di[current_rows])
+            i0 = float(np.median(di[current_rows]))
+            c0, cc = _fit_growth(activity[current_rows], di[current_rows] - i0)
+            c0 = _with_offset(c0, i0)
             typical = float(np.nanmedian(current[current_rows]))
         low, high = np.nanquantile(omega_model[speed_rows], RANGE_SHARES)
-        return BandNoise(s0, c0, sc, cc, int(np.count_nonzero(speed_rows)), typical, float(low), float(high))
+        busiest = float(np.quantile(activity[speed_rows], RANGE_SHARES[1]))
+        return BandNoise(
+            s0,
+            c0,
+            sc,
+            cc,
+            int(np.count_nonzero(speed_rows)),
+            typical,
+            float(low),
+            float(high),
+            w0,
+            i0,
+            busiest,
+        )
 
     if np.count_nonzero(judged) < MIN_MOTOR_SAMPLES:
         return {}

@@ -121,8 +121,9 @@ class ThresholdProfile:
     is this multiple of the motor's typical current in flight (measured with the noise), instead of
     ``stall_split_a``: a stalled motor's current scales with the motor's size, not with the paper's.
     ``range_margin`` (> 0, with ``noise_bands``): samples whose model speed lies beyond the speeds the
-    identification flight covered, by more than this share of the range's ends, are not judged (the model
-    was never checked there; stalls are still named). 0: judged everywhere.
+    identification flight covered, by more than this share of the range's ends, or whose input activity
+    exceeds the flight's busiest by more than this share, are not judged (the model, or its noise, was
+    never checked there; stalls are still named). 0: judged everywhere.
     """
 
     name: str
@@ -237,18 +238,21 @@ class ThresholdProfile:
 
     @cached_property
     def rules(self) -> tuple[Rule, ...]:
-        """The pipeline's rules in order (:mod:`.rules`): the comparison (``steady``), the sensors, the
+        """The pipeline's rules in order (:mod:`.rules`): the comparison (``steady``), each motor's healthy
+        offset (bands from the vehicle's noise), the sensors, the
         bands, the pairing, the tree and its slow look, which samples count, the sequential test where
         the profile has one, persistence. Made once per profile (frozen)."""
         from .rules.announce import Persistence, Sequential
         from .rules.bands import Bands
         from .rules.judged import Judged
+        from .rules.offsets import HealthyOffsets
         from .rules.pairing import PairingGuard
         from .rules.sensors import SensorCheck
         from .rules.tree import SlowLook, Tree
 
         return (
             self.steady,
+            *([HealthyOffsets()] if self.noise_bands > 0 else []),
             SensorCheck(self.plausibility),
             Bands(self),
             PairingGuard(self),

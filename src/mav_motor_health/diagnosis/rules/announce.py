@@ -44,13 +44,17 @@ class Sequential(Rule):
         if frame.low_pass_s is None:
             raise ValueError(f"profile {profile.name!r}: the sequential test needs a low-passed comparison")
         sigmas = profile.noise_bands
+        speed_band = np.asarray(frame.speed_band_rad_s, dtype=float)
+        # without a trusted current, the speed is judged against the tree's speed-only band
+        alone_band = profile.speed_only_band(speed_band, frame.omega_model_rad_s)
+        deviation = frame.omega_judged_rad_s - frame.omega_model_rad_s
         with np.errstate(divide="ignore", invalid="ignore"):
             evidence = direction_evidence(
-                (frame.omega_judged_rad_s - frame.omega_model_rad_s)
-                / (np.asarray(frame.speed_band_rad_s, dtype=float) / sigmas),
+                deviation / (speed_band / sigmas),
                 (frame.current_judged_a - frame.current_model_a) / (frame.current_band_a / sigmas),
                 frame.current_trusted(),
                 sigmas,
+                z_omega_alone=deviation / (alone_band / sigmas),
             )
         # judged: the steady samples the tree named a motor state on (not a stall, a bad sensor, no data)
         judged = frame.steady & ~np.isin(frame.state, _NOT_DIRECTIONS)

@@ -36,9 +36,15 @@ class Judged(Rule):
         state[(frame.sensor_flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT
         steady = frame.steady
         if profile.range_margin > 0 and noise is not None and profile.noise_bands > 0:
-            # beyond the speeds identification checked the model at: not judged (a stall still is)
-            omega = frame.omega_model_rad_s
-            known = np.stack([n.known(omega[r], profile.range_margin) for r, n in enumerate(noise)])
+            # beyond the speeds identification checked the model at, or in busier air than its flight's
+            # (the noise there is an extrapolation): not judged (a stall still is)
+            omega, activity = frame.omega_model_rad_s, frame.activity_v
+            known = np.stack(
+                [
+                    n.known(omega[r], profile.range_margin, None if activity is None else activity[r])
+                    for r, n in enumerate(noise)
+                ]
+            )
             steady = steady & (known | np.isin(state, TRANSIENT_OK))
         eligible = (steady | np.isin(state, TRANSIENT_OK)) & (state != MotorState.NO_DATA)
         if frame.command is not None and profile.min_command > 0:
