@@ -28,6 +28,7 @@ from ...model.dynamics import ResponseCarry, first_order_responses
 from ..stall import StallCarry, stall_mean_rows
 from ..steady import SteadyCarry, warm_mask_rows
 from .base import CompareRule, Frame, SlowAverages
+from .step import check_settling
 
 __all__ = ["BalanceCarry", "BalanceRule", "BalanceRuleCarry"]
 
@@ -60,10 +61,7 @@ class BalanceRule(CompareRule):
     bus_ref_v: float = 0.0
 
     def validate(self) -> None:
-        if not (self.step_v > 0 and self.settle_s >= 0):
-            raise ConfigError(
-                "step_v must be > 0 and settle_s >= 0", key="steady", expected="step_v > 0 V, settle_s >= 0 s"
-            )
+        check_settling(self.step_v, self.settle_s)
         if not self.residual_tau_s > 0:
             raise ConfigError(
                 f"{self.residual_tau_s!r}",

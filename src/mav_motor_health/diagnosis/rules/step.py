@@ -21,7 +21,7 @@ from ...model.predict import predict_steady
 from ..steady import SteadyCarry, steady_mask_rows
 from .base import CompareRule, Frame
 
-__all__ = ["StepCarry", "StepRule", "lowpass_residuals", "steady_model"]
+__all__ = ["StepCarry", "StepRule", "check_settling", "lowpass_residuals", "steady_model"]
 
 
 @dataclass(frozen=True)
@@ -47,10 +47,7 @@ class StepRule(CompareRule):
     residual_tau_s: float = 0.0
 
     def validate(self) -> None:
-        if not (self.step_v > 0 and self.settle_s >= 0):
-            raise ConfigError(
-                "step_v must be > 0 and settle_s >= 0", key="steady", expected="step_v > 0 V, settle_s >= 0 s"
-            )
+        check_settling(self.step_v, self.settle_s)
         if not self.residual_tau_s >= 0:
             raise ConfigError(
                 f"{self.residual_tau_s!r}", key="steady.residual_tau_s", expected="a time constant >= 0 s"
@@ -97,6 +94,14 @@ class StepRule(CompareRule):
         )
         rows = frame.shape[0]
         return [StepCarry(settled[r], residuals[r], residuals[rows + r], responses[r]) for r in range(rows)]
+
+
+def check_settling(step_v: float, settle_s: float) -> None:
+    """Refuse a step that is no step, or a negative wait after it (the step and balance rules')."""
+    if not (step_v > 0 and settle_s >= 0):
+        raise ConfigError(
+            "step_v must be > 0 and settle_s >= 0", key="steady", expected="step_v > 0 V, settle_s >= 0 s"
+        )
 
 
 def steady_model(
