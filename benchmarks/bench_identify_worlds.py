@@ -10,10 +10,12 @@ translations, yaw turns); the flight is written as a log in the chosen format by
 (the .tlog carries ESC_TELEMETRY at the world's rate, at most 50 Hz, commands at 10-50 Hz, as a ground
 station records them), read back by the project's reader and identified as ``fit LOG`` does
 (:func:`mav_motor_health.identification.identify_logs`, no prior given). Printed per world: the truth and
-the error of k_e, R, J and the idle offset c0, the current side found, which values the flight
-determined; then the median and the worst world, and how many worlds meet the issue's bounds (k_e within
-3 %, R within 15 %, J within 30 %, c0 within 0.01). R is judged only where the ESCs report a usable
-current, and against R/gain where no battery monitor could give the sensor's gain.
+the error of k_e, R, J and the idle offset c0, the current side found ("undetermined" where the reading
+follows the load but the flight does not tell its side: the params file says "unusable"), which values
+the flight determined; then the median and the worst world, how many worlds meet the issue's bounds
+(k_e within 3 %, R within 15 %, J within 30 %, c0 within 0.01), and the current side true × found. R is
+judged only where the ESCs report a usable current, and against R/gain where no battery monitor could
+give the sensor's gain.
 
 A second table says what the log does to the electrical balance itself: k_e and R from the balance at
 the world's *true* idle offset and current side (:func:`~mav_motor_health.model.identify.
@@ -114,7 +116,10 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
         # without a battery monitor's comparison the sensor's gain is assumed 1: R is R/gain then
         gain = world.current.gain if found.current.gain_from == "assumed" else 1.0
         errors["R_ohm"] = p.R_ohm / (truth.R_ohm / gain) - 1.0
-    return result(found.current.side, errors, dict(found.determined_by))
+    side = found.current.side
+    if side == "unusable" and found.current.side_test is not None:
+        side = "undetermined"  # a reading that follows the load, on a side the flight does not tell
+    return result(side, errors, dict(found.determined_by))
 
 
 def balance_at_truth(path: Path, world: World) -> dict[str, float]:
@@ -195,6 +200,12 @@ def main(argv: list[str] | None = None) -> int:
             f"{within:>7}/{len(values):<3}  {scale * bound:g}{unit}"
         )
     print(f"\n{len(results) - len(ok)} of {len(results)} worlds failed to identify")
+    found_sides = ("input", "motor", "undetermined", "unusable")
+    print(f"\ncurrent side, true (rows) x found (columns), identified worlds\n{'':>10}", end="")
+    print("".join(f"{name:>14}" for name in found_sides))
+    for true_side in ("input", "motor", "unusable"):
+        counts = [sum(r.side_true == true_side and r.side_found == f for r in ok) for f in found_sides]
+        print(f"{true_side:>10}" + "".join(f"{n:>14}" for n in counts))
     print(
         "\nthe electrical balance at the true idle offset and current side (no search, no prior), and what"
         "\nthe log does to it: command jitter (of the command range), pairing, current readings at 0\n"

@@ -10,7 +10,15 @@ import pytest
 
 from mav_motor_health.config import load_motor_params
 from mav_motor_health.errors import FitError
-from mav_motor_health.model.identify import K_BIC_MARGIN, electrical_balance_at, identify
+from mav_motor_health.evaluation.worlds import write_identification_log
+from mav_motor_health.model.identify import (
+    K_BIC_MARGIN,
+    SIDE_ELASTICITY,
+    SIDE_MARGIN_SE,
+    electrical_balance_at,
+    identify,
+)
+from mav_motor_health.sim.worlds import draw_world
 from mav_motor_health.telemetry import sources
 from mav_motor_health.telemetry.table import TelemetryTable
 
@@ -89,3 +97,36 @@ def test_the_electrical_balance_at_the_true_esc_map_recovers_the_motor_where_com
     for k_e, r_ohm in fits.values():
         assert abs(k_e / truth.k_e - 1) < 0.015
         assert abs(r_ohm / truth.R_ohm - 1) < 0.10
+
+
+def test_the_current_side_is_read_from_the_readings_dependence_on_the_bus_voltage(tmp_path: Path) -> None:
+    # development world 22 (seeded): its ESCs report their input current, and the electrical balances'
+    # residuals preferred the motor side (0.332 V against 0.338 V: the commands' pairing biases both by
+    # more than R*i's share of the duty parts them), so the old choice by the smaller residual read the
+    # input side as the motor side. At a given speed the motor current is set by the load and the duty
+    # driving it goes as 1/V_bus: an input-side reading has elasticity -1 with the bus voltage, a
+    # motor-side one 0, and the pack's discharge over the flight measures which.
+    assert draw_world(22).current.side == "input"
+    log = write_identification_log(22, tmp_path / "world22.tlog")
+    result = identify(sources.read(log), load_motor_params())
+    assert result.current.residual_v["motor"] < result.current.residual_v["input"]  # the old choice: motor
+    test = result.current.side_test
+    assert test is not None and test.side == "input" and test.margin_se >= SIDE_MARGIN_SE
+    assert abs(test.elasticity - SIDE_ELASTICITY["input"]) < 3 * test.stderr
+    assert result.current.side == "input"
+    assert "side test: elasticity" in result.report()
+
+
+def test_a_motor_side_reading_is_told_and_a_flight_that_cannot_tell_says_so(paper_flight) -> None:
+    cols = dict(paper_flight.columns)
+    duty = cols["throttle"]  # the simulated hexacopter's ESCs: the command is the duty
+    phase = np.where(duty > 0.05, cols["esc_current_a"] / np.maximum(duty, 0.05), np.nan)
+    motor_side = identify(TelemetryTable({**cols, "esc_current_a": phase}), load_motor_params())
+    assert motor_side.current.side == "motor" and motor_side.current.side_test.side == "motor"
+    # at a constant bus voltage nothing parts the two sides (the old choice took the smaller residual,
+    # "motor" here): the side is left undetermined, the current unjudged, R and k_e still fitted
+    flat = np.full(len(paper_flight), float(np.nanmedian(cols["bus_voltage_v"])))
+    result = identify(TelemetryTable({**cols, "bus_voltage_v": flat}), load_motor_params())
+    assert result.current.side == "unusable"
+    assert any("does not tell which side" in f for f in result.findings)
+    assert result.determined_by["R_ohm"].startswith("data") and "side" in result.determined_by["R_ohm"]

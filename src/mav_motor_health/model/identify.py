@@ -13,9 +13,20 @@ every instant (see :mod:`.balance`), so identification fits them as balances ove
    the ESC's own averaging and the command's pairing out, and every product is formed per sample before
    averaging, so the balance holds whatever the input does within a bin. For a given ``c₀`` each motor's
    (k_e, R/g) is a non-negative linear least-squares fit; ``c₀`` minimises the pooled residual (a bounded
-   scalar search). The convention with the smaller residual is taken (both are reported), and a reading
-   that does not follow the load at all (constant, zero, uncorrelated) is "unusable": then R comes from
-   the prior and the current is left to the speed-only path.
+   scalar search), for each convention on its own. A reading that does not follow the load at all
+   (constant, zero, uncorrelated) is "unusable": then R comes from the prior and the current is left to
+   the speed-only path.
+1b. **Which convention**: not the smaller residual (both are reported). The two balances differ only in
+   R·i's share of the duty, a few hundredths of a volt, and the commands' pairing biases them by more,
+   so the residuals chose at random (11 of 29 development worlds right). The side comes from a physical
+   consequence instead (:func:`current_side_test`): at a given speed the load sets the motor current
+   and the duty that drives it goes as ``1/V_bus``, so an input-side reading ``g·d·i`` has elasticity −1
+   with the bus voltage and a motor-side one 0; the pack's discharge over the flight measures which
+   (no command, no idle offset enters). Where the estimate lies less than :data:`SIDE_MARGIN_SE`
+   standard errors beyond the midpoint, or more than that from the likelier side's own value, the
+   flight does not tell: R and k_e are fitted on the convention with the smaller residual (the
+   speed-only diagnosis needs them), the reading is reported "unusable" (the diagnosis judges the speed
+   alone) and a finding says why.
 2. **Current scale** ``g``: a current sensor's gain cannot be told from the motor's R by the motor's own
    data (R/g, g·C_p, g·J explain the same log). Where the log has the battery monitor, the ESCs' summed
    input current against the battery current gives ``g`` (a regression with an offset for the rest of the
@@ -80,6 +91,47 @@ BATTERY_GAIN_RANGE = (0.3, 3.0)
 K_SPEED_SPAN = 1.6
 #: time constant of the mechanical balance's low-pass [s]
 MECHANICAL_TAU_S = 0.3
+#: the elasticity of the ESC's current reading with the bus voltage at a given speed on each side: at a
+#: given speed the load, hence the motor current, is set; the duty that drives it is ∝ 1/V_bus, so an
+#: input-side reading (duty × motor current) goes as V_bus⁻¹ and a motor-side one does not move
+SIDE_ELASTICITY = {"input": -1.0, "motor": 0.0}
+#: the side is taken from the data only where the measured elasticity lies this many standard errors
+#: beyond the midpoint between the two sides' values (the convention the sibling findings use too)
+SIDE_MARGIN_SE = 3.0
+#: the bus voltage's slow part (its mean over this window [s], all motors) instruments it in the side
+#: test, and the test's standard error treats blocks of this length as independent: the pack's discharge
+#: and a manoeuvre's sag move the voltage over seconds and tens of seconds, while a burst of current
+#: sags it at the instant the same reading is taken (that fast part would read as a dependence)
+SIDE_VOLTAGE_WINDOW_S = 5.0
+#: readings below this share of the flight's median reading are left out of the side test (an ESC
+#: reports no negative current: near 0 a reading's mean says nothing of a proportion)
+SIDE_MIN_READING_SHARE = 0.05
+
+
+@dataclass(frozen=True)
+class SideTest:
+    """Which side the ESC reads its current on, from the reading's dependence on the bus voltage at a
+    given speed (:func:`current_side_test`): ``elasticity`` ± ``stderr`` against
+    :data:`SIDE_ELASTICITY`; ``margin_se`` how many standard errors the estimate lies beyond the midpoint
+    between the two sides, positive toward the input side; ``side`` "input", "motor" or "undetermined"
+    (less than :data:`SIDE_MARGIN_SE`, or the likelier side's own value more than that far off:
+    ``likelier_fits`` False); ``likelier`` the side the estimate leans to."""
+
+    elasticity: float
+    stderr: float
+    bins: int
+    margin_se: float
+    side: str
+    likelier: str
+    likelier_fits: bool = True
+
+    def describe(self) -> str:
+        return (
+            f"elasticity of the reading with the bus voltage at a given speed {self.elasticity:+.2f} "
+            f"+- {self.stderr:.2f} (input side -1, motor side 0; {self.bins} bins"
+            + ("" if self.likelier_fits else "; neither side's")
+            + ")"
+        )
 
 
 @dataclass(frozen=True)
@@ -92,6 +144,9 @@ class CurrentReading:
     gain_from: str = "assumed"
     offset_a: float = 0.0
     residual_v: Mapping[str, float] = field(default_factory=dict)
+    #: the side test (:func:`current_side_test`) where it ran: None for a reading that never followed
+    #: the load
+    side_test: SideTest | None = None
 
 
 @dataclass(frozen=True)
@@ -121,7 +176,8 @@ class Identification:
                 "; residual " + ", ".join(f"{k} {v:.3g} V" for k, v in self.current.residual_v.items())
                 if self.current.residual_v
                 else ""
-            ),
+            )
+            + (f"; side test: {self.current.side_test.describe()}" if self.current.side_test else ""),
             "",
             f"{'parameter':<10}{'value':>14}{'stderr':>12}  determined by",
         ]
@@ -215,6 +271,90 @@ def _usable_current(terms: _ElectricalTerms) -> bool:
         return False
     r = np.corrcoef(s, w * w)[0, 1]
     return bool(np.isfinite(r) and r > 0.3)
+
+
+def current_side_test(
+    data: Sequence[_MotorData], bin_s: float, motors: Sequence[int] | None = None
+) -> SideTest | None:
+    """The side the ESCs read their current on, from the reading's elasticity with the bus voltage at a
+    given speed (:data:`SIDE_ELASTICITY`: input −1, motor 0). Needs no command, no idle offset and no
+    electrical balance, so the commands' pairing and jitter (which bias that balance) do not enter.
+
+    Per time bin and motor, ``log ⟨s⟩ = a_motor + cubic(log ⟨ω⟩) + β·log ⟨V_bus⟩``: the cubic in the
+    speed stands for the load at that speed (any propeller exponent, friction); β is the elasticity.
+    Two-stage least squares with the voltage's slow part (:data:`SIDE_VOLTAGE_WINDOW_S`) as the
+    instrument, and a standard error robust to noise correlated within blocks of that length (the
+    clusters). None where too few bins remain for the fit."""
+    chosen = [m for m in data if motors is None or m.motor in motors]
+    rows = []
+    for m in chosen:
+        have = np.isfinite(m.current) & np.isfinite(m.bus_v) & (m.bus_v > 0)
+        if have.sum() < 10:
+            continue
+        keys, index, counts = np.unique(m.bins[have], return_inverse=True, return_counts=True)
+        means = [np.bincount(index, weights=x[have]) / counts for x in (m.omega, m.current, m.bus_v)]
+        rows.append(np.column_stack([np.full(keys.size, m.motor, float), keys.astype(float), *means]))
+    if not rows:
+        return None
+    motor, key, w, s, v = np.vstack(rows).T
+    ok = (s > SIDE_MIN_READING_SHARE * float(np.median(s))) & (s > 0) & (w > 0)
+    motor, key, w, s, v = motor[ok], key[ok], w[ok], s[ok], v[ok]
+    names = np.unique(motor)
+    if s.size < 12 * (names.size + 4):  # a dozen bins per coefficient at the least
+        return None
+    lw = np.log(w / float(np.median(w)))
+    lv = np.log(v / float(np.median(v)))
+    # the instrument: the voltage's mean over all motors within the window around each bin
+    times, at = np.unique(key, return_inverse=True)
+    per_time = np.bincount(at, weights=lv) / np.bincount(at)
+    half = 0.5 * SIDE_VOLTAGE_WINDOW_S / bin_s
+    total = np.concatenate([[0.0], np.cumsum(per_time)])
+    lo = np.searchsorted(times, times - half)
+    hi = np.searchsorted(times, times + half, side="right")
+    slow = ((total[hi] - total[lo]) / (hi - lo))[at]
+    controls = [(motor == n).astype(float) for n in names] + [lw, lw**2, lw**3]
+    x = np.column_stack([*controls, lv])
+    z = np.column_stack([*controls, slow])
+    y = np.log(s)
+    blocks = np.floor(key * bin_s / SIDE_VOLTAGE_WINDOW_S)
+    fitted = _two_stage(x, z, y, blocks)
+    if fitted is None:
+        return None
+    beta, stderr = fitted
+    midpoint = 0.5 * (SIDE_ELASTICITY["input"] + SIDE_ELASTICITY["motor"])
+    margin = (midpoint - beta) / stderr if stderr > 0 else math.nan
+    likelier = "input" if beta < midpoint else "motor"
+    # the likelier side must itself fit: an estimate as far from both values says the reading depends on
+    # the voltage in some other way on this flight, and the test tells nothing
+    fits = abs(beta - SIDE_ELASTICITY[likelier]) <= SIDE_MARGIN_SE * stderr
+    side = likelier if abs(margin) >= SIDE_MARGIN_SE and fits else "undetermined"
+    return SideTest(float(beta), float(stderr), int(s.size), float(margin), side, likelier, fits)
+
+
+def _two_stage(
+    x: FloatArray, z: FloatArray, y: FloatArray, clusters: FloatArray
+) -> tuple[float, float] | None:
+    """The last coefficient of ``y = x·b`` by two-stage least squares with instruments ``z`` (same
+    columns but the last), and its standard error robust to noise correlated within each cluster."""
+    try:
+        projection = np.linalg.lstsq(z, x, rcond=None)[0]
+        x_hat = z @ projection
+        a = x_hat.T @ x
+        coef = np.linalg.solve(a, x_hat.T @ y)
+        inverse = np.linalg.inv(a)
+    except np.linalg.LinAlgError:
+        return None
+    resid = y - x @ coef
+    labels, index = np.unique(clusters, return_inverse=True)
+    if labels.size < 3:
+        return None
+    scores = np.zeros((labels.size, x.shape[1]))
+    np.add.at(scores, index, x_hat * resid[:, None])
+    cov = inverse @ (scores.T @ scores) @ inverse.T * labels.size / (labels.size - 1)
+    variance = float(cov[-1, -1])
+    if not (math.isfinite(variance) and variance > 0 and math.isfinite(coef[-1])):
+        return None
+    return float(coef[-1]), math.sqrt(variance)
 
 
 def _battery_gain(
@@ -321,12 +461,30 @@ def identify(
     usable = {motor: _usable_current(t) for motor, t in terms.items()}
     findings: list[str] = []
     c0_stderr = math.inf
+    side_test: SideTest | None = None
+    reported_side = ""  # the side the params file states, where it is not the side fitted on
     if sum(usable.values()) >= max(1, len(usable) // 2 + 1):
         with_current = {mo: t for mo, t in terms.items() if usable[mo]}
         fits = {side: _pooled_electrical(with_current, side) for side in ("input", "motor")}
-        side = min(fits, key=lambda s: fits[s][1])
-        c0, _, c0_stderr = fits[side]
         residual_v = {s: fits[s][1] for s in fits}
+        # the side from the reading's dependence on the bus voltage, not from the residuals: the two
+        # balances differ only in R·i's share of the duty, a few per cent of a volt, and the commands'
+        # pairing biases them by more (docs/model.md, "Which side the ESC reads")
+        side_test = current_side_test(data, bin_s, [mo for mo in usable if usable[mo]])
+        if side_test is not None and side_test.side in SIDE_ELASTICITY:
+            side = side_test.side
+        else:
+            # R and k_e still come from the balance that fits the better (the speed-only diagnosis needs
+            # them), but the reading is not trusted: the params file says "unusable"
+            side = min(fits, key=lambda s: fits[s][1])
+            reported_side = "unusable"
+            findings.append(
+                "the flight does not tell which side the ESCs read their current on"
+                + (f" ({side_test.describe()})" if side_test is not None else "")
+                + f": R and k_e are fitted as for the {side} side (the smaller residual), the current is not "
+                "judged (speed only); a flight with more of the battery's discharge would tell"
+            )
+        c0, _, c0_stderr = fits[side]
     else:
         side, residual_v = "unusable", {}
         c0 = _speed_only_offset(data, prior)
@@ -409,9 +567,10 @@ def identify(
     c_p, b, t_f, inertia = (float(v) for v in x)
     determined = {
         "idle_offset": offset_from,
-        "R_ohm": "data"
-        if r_values and gain_from == "battery"
-        else ("prior" if not r_values else "data (x current gain)"),
+        "R_ohm": "prior"
+        if not r_values
+        else ("data" if gain_from == "battery" else "data (x current gain)")
+        + (f" as for the {side} side" if reported_side else ""),
         "k_e": "data",
         "C_p": "data",
         "B": "data" if err[1] < 0.5 * PRIOR_SHARE * load / w_typ else "prior",
@@ -447,7 +606,12 @@ def identify(
         per_motor=per_motor,
         esc=esc,
         current=CurrentReading(
-            side=side, gain=gain, gain_from=gain_from, offset_a=offset, residual_v=residual_v
+            side=reported_side or side,
+            gain=gain,
+            gain_from=gain_from,
+            offset_a=offset,
+            residual_v=residual_v,
+            side_test=side_test,
         ),
         stderr={
             "R_ohm": _median_stderr([v[1] * gain for v in per_motor_e.values() if math.isfinite(v[1])]),
