@@ -72,6 +72,7 @@ def one_world(
     fmt: str,
     identification_s: float,
     vehicle_from: str,
+    healthy_only: bool = False,
 ) -> WorldEvaluation:
     started = time.monotonic()
     try:
@@ -83,6 +84,7 @@ def one_world(
             fmt=fmt,
             identification_s=identification_s,
             vehicle_from=vehicle_from,
+            **({"faults": ()} if healthy_only else {}),
         )
     except Exception as exc:  # a benchmark reports every world, a failure too
         return WorldEvaluation(
@@ -128,7 +130,7 @@ def print_world(e: WorldEvaluation) -> None:
         )
 
 
-def print_summary(s: WorldsSummary) -> None:
+def print_summary(s: WorldsSummary, faults: bool = True) -> None:
     print(
         f"\nOver {s.evaluated} worlds evaluated ({len(s.refused)} refused by identification"
         + (f": {', '.join(map(str, s.refused))}" if s.refused else "")
@@ -137,6 +139,12 @@ def print_summary(s: WorldsSummary) -> None:
     )
     if not s.evaluated:
         return
+    if faults:
+        print_faults(s)
+    print_healthy(s)
+
+
+def print_faults(s: WorldsSummary) -> None:
     print(
         "\n                 accuracy after onset [%]          detection [s]     fault or its speed-only"
         "\n                 median / worst decile (goal)      median / 90th     state [%]: median / worst"
@@ -158,6 +166,9 @@ def print_summary(s: WorldsSummary) -> None:
         f"  detection over every fault flight: median {_secs(dmed).strip()} s, 90th percentile "
         f"{_secs(dworst).strip()} s (goal: median <= {GOAL_DETECTION_S} s)"
     )
+
+
+def print_healthy(s: WorldsSummary) -> None:
     print("\nhealthy motors' judged samples NORMAL / healthy samples judged [%]: median world / worst decile")
     for level in TURBULENCE_LEVELS:
         nmed, nworst = s.normal[level]
@@ -201,6 +212,9 @@ def main(argv: list[str] | None = None) -> int:
         default="fit",
         help="fit: identified from the healthy flight (default); truth: the world's true vehicle",
     )
+    parser.add_argument(
+        "--healthy-only", action="store_true", help="no fault flights: false events and judged share only"
+    )
     args = parser.parse_args(argv)
     if args.count < 1 or args.jobs < 1 or args.duration_s <= 0 or args.healthy_flights < 0:
         parser.error("--count and --jobs must be >= 1, --duration-s > 0, --healthy-flights >= 0")
@@ -213,6 +227,7 @@ def main(argv: list[str] | None = None) -> int:
         args.format,
         args.identification_s,
         args.vehicle,
+        args.healthy_only,
     )
     results: list[WorldEvaluation] = []
     if args.jobs == 1:
@@ -233,13 +248,13 @@ def main(argv: list[str] | None = None) -> int:
     vehicle = "identified by fit from" if args.vehicle == "fit" else "the true vehicle; no"
     print(
         f"worlds {seeds[0]}-{seeds[-1]}: {vehicle} one {args.identification_s:g}-s healthy flight; per "
-        f"turbulence level 5 fault flights and {args.healthy_flights} healthy of {args.duration_s:g} s, "
+        f"turbulence level {0 if args.healthy_only else 5} fault flights and {args.healthy_flights} healthy of {args.duration_s:g} s, "
         f"as .{args.format}, profile {args.profile}\n"
         f"columns: accuracy after onset and detection per fault ({', '.join(FAULTS)})\n"
     )
     for e in results:
         print_world(e)
-    print_summary(summarise(results))
+    print_summary(summarise(results), faults=not args.healthy_only)
     print(f"\n(benchmark took {time.monotonic() - started:.0f} s)")
     return 0
 

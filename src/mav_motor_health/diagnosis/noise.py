@@ -26,10 +26,17 @@ another manoeuvre the model may be off by as much the other way. So its size is 
 in quadrature: σ₀² ← σ₀² + offset². A motor the model describes well keeps its narrow bands; one it
 describes badly gets bands as wide as the model's error, which identification measured, not guessed.
 
-**The conditions the noise was measured in.** σ(a) is measured up to the busiest input of the healthy
-flight (``activity_high_v``, the 99th percentile of its judged samples' activity); beyond it, in air
-rougher than the flight's, σ(a) would be an extrapolation, and the samples are not judged (the profile's
-``range_margin`` widens the limit as it widens the speed range; a stall is still named).
+**The log's pairing.** A log pairs each sample with a command some time apart; the pairing error ``e``
+(:mod:`.pairing`, rad/s) bounds how far that moves the deviations, and on the vehicle's own log it moves
+them by some part of it: σ² gains (p·e)², p measured with σ₀ and c (one non-negative fit over bins of
+the activity and of ``e``; ``speed_per_pairing``, ``current_a_per_pairing``). Zero where the log pairs
+exactly (the simulator's table, a CSV with both).
+
+**The conditions the noise was measured in.** σ is measured up to the busiest input of the healthy
+flight and its loosest pairing (``activity_high_v``, ``pairing_error_high_rad_s``: the
+:data:`CONDITION_SHARE` quantile of its judged samples'; the loosest few per cent are too few samples to
+measure a tail σ on); beyond them σ would be an extrapolation, and the samples are not judged (the
+profile's ``range_margin`` widens the limits as it widens the speed range; a stall is still named).
 
 A profile then sets ``noise_bands = n``: the bands are n·σ(a) of each motor, a dimensionless number that
 is the same for every vehicle. A vehicle file without the noise cannot be diagnosed with such a profile;
@@ -65,11 +72,17 @@ NOISE_KEYS = {
     "speed_offset_rad_s": "rad/s",
     "current_offset_a": "A",
     "activity_high_v": "V",
+    "speed_per_pairing": "rad/s per rad/s of pairing error",
+    "current_a_per_pairing": "A per rad/s of pairing error",
+    "pairing_error_high_rad_s": "rad/s",
 }
 #: the keys that may be negative (offsets from the model)
 SIGNED_NOISE_KEYS = ("speed_offset_rad_s", "current_offset_a")
 #: the identified speed range: these shares of the judged samples' model speeds lie inside it
 RANGE_SHARES = (0.01, 0.99)
+#: the input activity and pairing error the noise was measured up to: this share of the judged samples'
+#: (the tail σ needs samples around it; the loosest few percent are too few to measure it on)
+CONDITION_SHARE = 0.95
 #: the share of |deviation| below the measured tail, and where a Gaussian's lies (in σ)
 TAIL_SHARE = 0.99
 TAIL_SIGMAS = 2.5758293035489
@@ -79,6 +92,8 @@ MIN_MOTOR_SAMPLES = 200
 MIN_BIN_SAMPLES = 40
 #: at most this many activity bins
 MAX_BINS = 6
+#: the pairing error's bins start at these quantiles (its loosest samples in finer bins)
+PAIRING_BIN_SHARES = (0.0, 0.5, 0.75, 0.9, 0.97)
 
 
 @dataclass(frozen=True)
@@ -105,19 +120,34 @@ class BandNoise:
     #: the input activity the healthy flight reached (99th percentile of the judged samples'): σ(a) was
     #: measured up to there, and is an extrapolation beyond; NaN: not known
     activity_high_v: float = math.nan
+    #: how σ grows with the log's pairing error e (:mod:`.pairing`, rad/s): σ² gains (p·e)², for the speed
+    #: (dimensionless) and the current [A per rad/s]; 0: not measured (a log that pairs exactly)
+    speed_per_pairing: float = 0.0
+    current_a_per_pairing: float = 0.0
+    #: the pairing error the healthy flight reached (99th percentile of its judged samples'): σ was
+    #: measured up to there; NaN: not known
+    pairing_error_high_rad_s: float = math.nan
 
-    def sigmas(self, activity_v: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """σ of the speed [rad/s] and current [A] deviations at each input activity [V]."""
+    def sigmas(
+        self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """σ of the speed [rad/s] and current [A] deviations at each input activity [V] (and pairing error
+        [rad/s], where given)."""
         a = np.nan_to_num(np.asarray(activity_v, dtype=float))
         speed = np.hypot(self.speed_rad_s, self.speed_rad_s_per_v * a)
         current = np.hypot(self.current_a, self.current_a_per_v * a)
+        if pairing_error_rad_s is not None and (self.speed_per_pairing > 0 or self.current_a_per_pairing > 0):
+            e = np.nan_to_num(np.asarray(pairing_error_rad_s, dtype=float))
+            speed = np.hypot(speed, self.speed_per_pairing * e)
+            current = np.hypot(current, self.current_a_per_pairing * e)
         if not math.isfinite(self.current_a):
             current = np.full(a.shape, np.inf)  # no usable current: nothing to compare with
         return speed, current
 
     def as_mapping(self) -> dict[str, float]:
-        """The ``[noise.N]`` keys of a vehicle file."""
-        return {
+        """The ``[noise.N]`` keys of a vehicle file (the pairing's only where measured: a file reads the
+        same without them)."""
+        values = {
             "speed_rad_s": self.speed_rad_s,
             "speed_rad_s_per_v": self.speed_rad_s_per_v,
             "current_a": self.current_a,
@@ -129,7 +159,14 @@ class BandNoise:
             "speed_offset_rad_s": self.speed_offset_rad_s,
             "current_offset_a": self.current_offset_a,
             "activity_high_v": self.activity_high_v,
+            "speed_per_pairing": self.speed_per_pairing,
+            "current_a_per_pairing": self.current_a_per_pairing,
+            "pairing_error_high_rad_s": self.pairing_error_high_rad_s,
         }
+        if not math.isfinite(self.pairing_error_high_rad_s):
+            for key in ("speed_per_pairing", "current_a_per_pairing", "pairing_error_high_rad_s"):
+                del values[key]
+        return values
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, float]) -> BandNoise | None:
@@ -149,14 +186,21 @@ class BandNoise:
             speed_offset_rad_s=float(values.get("speed_offset_rad_s", 0.0)),
             current_offset_a=float(values.get("current_offset_a", 0.0)),
             activity_high_v=float(values.get("activity_high_v", math.nan)),
+            speed_per_pairing=float(values.get("speed_per_pairing", 0.0)),
+            current_a_per_pairing=float(values.get("current_a_per_pairing", 0.0)),
+            pairing_error_high_rad_s=float(values.get("pairing_error_high_rad_s", math.nan)),
         )
 
     def known(
-        self, omega_model_rad_s: ArrayLike, margin: float, activity_v: ArrayLike | None = None
+        self,
+        omega_model_rad_s: ArrayLike,
+        margin: float,
+        activity_v: ArrayLike | None = None,
+        pairing_error_rad_s: ArrayLike | None = None,
     ) -> NDArray[np.bool_]:
         """Where the model speed lies in the range the healthy flight covered, widened by ``margin`` (a
-        share of the range's ends), and the input activity (where given) is at most the flight's highest,
-        widened alike; everywhere where a range is not known."""
+        share of the range's ends), and the input activity and the pairing error (where given) are at most
+        the flight's highest, widened alike; everywhere where a range is not known."""
         w = np.asarray(omega_model_rad_s, dtype=float)
         inside = np.ones(w.shape, dtype=bool)
         if math.isfinite(self.omega_low_rad_s) and math.isfinite(self.omega_high_rad_s):
@@ -166,6 +210,11 @@ class BandNoise:
         if activity_v is not None and math.isfinite(self.activity_high_v):
             inside &= (
                 np.nan_to_num(np.asarray(activity_v, dtype=float)) <= (1.0 + margin) * self.activity_high_v
+            )
+        if pairing_error_rad_s is not None and math.isfinite(self.pairing_error_high_rad_s):
+            inside &= (
+                np.nan_to_num(np.asarray(pairing_error_rad_s, dtype=float))
+                <= (1.0 + margin) * self.pairing_error_high_rad_s
             )
         return inside
 
@@ -181,25 +230,40 @@ def _with_offset(sigma: float, offset: float) -> float:
     return math.hypot(sigma, offset)
 
 
-def _fit_growth(activity: NDArray[np.float64], deviation: NDArray[np.float64]) -> tuple[float, float]:
-    """σ₀ and c of σ(a) = √(σ₀² + (c·a)²) from the tail of |deviation| in activity bins."""
-    bins = max(1, min(MAX_BINS, activity.size // MIN_BIN_SAMPLES))
-    edges = np.quantile(activity, np.linspace(0.0, 1.0, bins + 1))
-    which = np.clip(np.searchsorted(edges, activity, side="right") - 1, 0, bins - 1)
-    centres, sigmas = [], []
-    for b in range(bins):
-        sel = which == b
-        if np.count_nonzero(sel) >= MIN_BIN_SAMPLES or bins == 1:
-            centres.append(float(np.median(activity[sel])))
-            sigmas.append(_tail_sigma(deviation[sel]))
-    a, s = np.asarray(centres), np.asarray(sigmas)
-    if a.size < 2 or np.ptp(a) <= 0:
-        return _tail_sigma(deviation), 0.0
-    (s0_sq, c_sq), _ = nnls(np.column_stack([np.ones_like(a), a**2]), s**2)
-    s0 = math.sqrt(s0_sq)
+def _bins(x: NDArray[np.float64], shares: NDArray[np.float64]) -> list[NDArray[np.bool_]]:
+    """The samples cut at these quantiles of ``x``: each bin's mask (bins with too few samples left out)."""
+    edges = np.quantile(x, shares)
+    count = shares.size - 1
+    which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, count - 1)
+    bins = [which == b for b in range(count)]
+    return [sel for sel in bins if np.count_nonzero(sel) >= MIN_BIN_SAMPLES or count == 1]
+
+
+def _fit_growth(
+    activity: NDArray[np.float64], deviation: NDArray[np.float64], pairing: NDArray[np.float64] | None = None
+) -> tuple[float, float, float]:
+    """σ₀, c and p of σ(a, e) = √(σ₀² + (c·a)² + (p·e)²) from the tail of |deviation| in bins of the
+    activity ``a`` and (where given) of the pairing error ``e``: each bin's tail σ explained by its median
+    ``a`` and ``e`` (one non-negative least-squares fit over both sets of bins)."""
+    count = max(1, min(MAX_BINS, activity.size // MIN_BIN_SAMPLES))
+    bins = _bins(activity, np.linspace(0.0, 1.0, count + 1))
+    e_all = np.zeros(activity.size) if pairing is None else pairing
+    paired = bool(np.ptp(e_all) > 0) if e_all.size else False
+    if paired:
+        # the pairing error's tail matters most: finer bins towards its loosest samples
+        shares = [q for q in PAIRING_BIN_SHARES if (1.0 - q) * e_all.size >= MIN_BIN_SAMPLES]
+        bins += _bins(e_all, np.array([*shares, 1.0]))
+    a = np.array([np.median(activity[sel]) for sel in bins])
+    e = np.array([np.median(e_all[sel]) for sel in bins])
+    s = np.array([_tail_sigma(deviation[sel]) for sel in bins])
+    if a.size < 2 or (np.ptp(a) <= 0 and np.ptp(e) <= 0):
+        return _tail_sigma(deviation), 0.0, 0.0
+    design = np.column_stack([np.ones_like(a), a**2] + ([e**2] if paired else []))
+    coefficients, _ = nnls(design, s**2)
+    s0 = math.sqrt(coefficients[0])
     if not s0 > 0:  # all of it grows with the activity: keep a floor at the quietest bin's
         s0 = float(np.min(s))
-    return s0, math.sqrt(c_sq)
+    return s0, math.sqrt(coefficients[1]), math.sqrt(coefficients[2]) if paired else 0.0
 
 
 def measure_band_noise(
@@ -222,22 +286,32 @@ def measure_band_noise(
     current = column("current_a")
     omega_model = column("omega_model_rad_s")
     activity = np.nan_to_num(column("input_activity_v"))
+    # the pairing error of a log that pairs commands loosely (none: a source that pairs exactly)
+    pairing = (
+        np.nan_to_num(column("pairing_error_rad_s"))
+        if all("pairing_error_rad_s" in d.names for d in tables)
+        else None
+    )
     judged &= np.isfinite(dw)
     current_ok = judged & np.isfinite(di) & ((column("sensor_flags", np.int64) & CURRENT_UNTRUSTED) == 0)
     motors = column("motor", np.int64)
 
     def noise_of(speed_rows: NDArray[np.bool_], current_rows: NDArray[np.bool_]) -> BandNoise:
         w0 = float(np.median(dw[speed_rows]))
-        s0, sc = _fit_growth(activity[speed_rows], dw[speed_rows] - w0)
+        e_speed = None if pairing is None else pairing[speed_rows]
+        s0, sc, sp = _fit_growth(activity[speed_rows], dw[speed_rows] - w0, e_speed)
         s0 = _with_offset(s0, w0)
-        c0, cc, typical, i0 = math.nan, 0.0, math.nan, 0.0
+        c0, cc, cp, typical, i0 = math.nan, 0.0, 0.0, math.nan, 0.0
         if np.count_nonzero(current_rows) >= MIN_MOTOR_SAMPLES:
             i0 = float(np.median(di[current_rows]))
-            c0, cc = _fit_growth(activity[current_rows], di[current_rows] - i0)
+            e_current = None if pairing is None else pairing[current_rows]
+            c0, cc, cp = _fit_growth(activity[current_rows], di[current_rows] - i0, e_current)
             c0 = _with_offset(c0, i0)
             typical = float(np.nanmedian(current[current_rows]))
         low, high = np.nanquantile(omega_model[speed_rows], RANGE_SHARES)
-        busiest = float(np.quantile(activity[speed_rows], RANGE_SHARES[1]))
+        busiest = float(np.quantile(activity[speed_rows], CONDITION_SHARE))
+        paired = e_speed is not None and bool(np.any(e_speed > 0))  # else the log paired exactly
+        loosest = float(np.quantile(e_speed, CONDITION_SHARE)) if paired and e_speed is not None else math.nan
         return BandNoise(
             s0,
             c0,
@@ -250,6 +324,9 @@ def measure_band_noise(
             w0,
             i0,
             busiest,
+            sp,
+            cp,
+            loosest,
         )
 
     if np.count_nonzero(judged) < MIN_MOTOR_SAMPLES:

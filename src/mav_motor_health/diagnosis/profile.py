@@ -239,14 +239,14 @@ class ThresholdProfile:
     @cached_property
     def rules(self) -> tuple[Rule, ...]:
         """The pipeline's rules in order (:mod:`.rules`): the comparison (``steady``), each motor's healthy
-        offset (bands from the vehicle's noise), the sensors, the
-        bands, the pairing, the tree and its slow look, which samples count, the sequential test where
+        offset (bands from the vehicle's noise), the sensors, the pairing error, the bands (which may grow
+        with it), the pairing's limits, the tree and its slow look, which samples count, the sequential test where
         the profile has one, persistence. Made once per profile (frozen)."""
         from .rules.announce import Persistence, Sequential
         from .rules.bands import Bands
         from .rules.judged import Judged
         from .rules.offsets import HealthyOffsets
-        from .rules.pairing import PairingGuard
+        from .rules.pairing import PairingGuard, PairingLimits
         from .rules.sensors import SensorCheck
         from .rules.tree import SlowLook, Tree
 
@@ -254,8 +254,9 @@ class ThresholdProfile:
             self.steady,
             *([HealthyOffsets()] if self.noise_bands > 0 else []),
             SensorCheck(self.plausibility),
-            Bands(self),
             PairingGuard(self),
+            Bands(self),
+            PairingLimits(self),
             Tree(self),
             SlowLook(self.slow_band_fraction, self.joint_band_sum),
             Judged(self),

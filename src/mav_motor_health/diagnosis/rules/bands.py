@@ -32,9 +32,10 @@ class Bands(Rule):
                     f"profile {profile.name!r} needs each motor's noise (noise_bands); none given"
                 )
             a = np.zeros(shape) if frame.activity_v is None else frame.activity_v
+            e = frame.pairing_error_rad_s
             speed, current = np.empty(shape), np.empty(shape)
             for r, motor_noise in enumerate(noise):
-                speed[r], current[r] = motor_noise.sigmas(a[r])
+                speed[r], current[r] = motor_noise.sigmas(a[r], None if e is None else e[r])
             frame.speed_band_rad_s = profile.noise_bands * speed
             frame.current_band_a = profile.noise_bands * current
             frame.current_band_below_a = frame.current_band_a.copy()

@@ -36,12 +36,17 @@ class Judged(Rule):
         state[(frame.sensor_flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT
         steady = frame.steady
         if profile.range_margin > 0 and noise is not None and profile.noise_bands > 0:
-            # beyond the speeds identification checked the model at, or in busier air than its flight's
-            # (the noise there is an extrapolation): not judged (a stall still is)
-            omega, activity = frame.omega_model_rad_s, frame.activity_v
+            # beyond the speeds identification checked the model at, in busier air than its flight's or
+            # paired more loosely (the noise there is an extrapolation): not judged (a stall still is)
+            omega, activity, pairing = frame.omega_model_rad_s, frame.activity_v, frame.pairing_error_rad_s
             known = np.stack(
                 [
-                    n.known(omega[r], profile.range_margin, None if activity is None else activity[r])
+                    n.known(
+                        omega[r],
+                        profile.range_margin,
+                        None if activity is None else activity[r],
+                        None if pairing is None else pairing[r],
+                    )
                     for r, n in enumerate(noise)
                 ]
             )
