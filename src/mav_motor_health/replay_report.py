@@ -156,10 +156,14 @@ def _ribbon(
     starts = np.array([r[0] for r in runs])
     stops = np.array([r[1] for r in runs])
     x0s, x1s = axes.x(starts).tolist(), axes.x(stops).tolist()
+    looks: dict[int, tuple[str, str]] = {}  # each state's colour and label, looked up once
     for (start, stop, code), x0, x1 in zip(runs, x0s, x1s):
+        if code not in looks:
+            looks[code] = (STATE_COLOURS[MotorState(code)], MotorState(code).label)
+        colour, label = looks[code]
         rects.append(
             f'<rect x="{x0:.1f}" y="{y:.1f}" width="{max(x1 - x0, 0.6):.1f}" height="{h}" '
-            f'fill="{STATE_COLOURS[MotorState(code)]}"><title>{MotorState(code).label} '
+            f'fill="{colour}"><title>{label} '
             f"{start:.2f}–{stop:.2f} s</title></rect>"
         )
     return "".join(rects)

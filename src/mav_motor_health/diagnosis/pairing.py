@@ -112,23 +112,120 @@ def loosest_pairing(
     keep = t >= t[-1] - window_s
     if (u == u[0]).all():  # one pairing for all (a steady stream): that one
         return np.full(n - k, u[0]), t[keep], u[keep]
-    out = np.empty(n - k)
     widest = int(length.max())
     deepest = int(rank.max())
-    # each sample's last ``widest`` pairings (oldest first), those before its window's start set last
+    if n - k <= _DIRECT_MAX or widest <= deepest + 2:
+        out = _ranked_direct(u, start, at, rank, widest, deepest)
+    else:
+        out = _ranked_blocks(u, start, at, rank, widest, deepest)
+    return out, t[keep], u[keep]
+
+
+#: up to this many new samples :func:`loosest_pairing` picks each one's quantile from its whole window (the
+#: live agent's few samples); more go through the blocks of :func:`_ranked_blocks`
+_DIRECT_MAX = 256
+
+
+def _ranked_direct(
+    u: NDArray[np.float64],
+    start: NDArray[np.int64],
+    at: NDArray[np.int64],
+    rank: NDArray[np.int64],
+    widest: int,
+    deepest: int,
+) -> NDArray[np.float64]:
+    """Per query ``q``, the ``rank[q]``-th largest (0: the largest) of ``u[start[q] : at[q] + 1]`` (at most
+    ``widest`` values; ``rank`` at most ``deepest``): each window laid out whole, the largest ones picked."""
+    out = np.empty(at.size)
     pad = widest - 1
     negated_u = np.concatenate((np.full(pad, np.inf), -u))
-    position = np.concatenate((np.full(pad, -1, dtype=np.int64), np.arange(n)))
-    windows = np.lib.stride_tricks.sliding_window_view(negated_u, widest)[k:]
-    positions = np.lib.stride_tricks.sliding_window_view(position, widest)[k:]
+    position = np.concatenate((np.full(pad, -1, dtype=np.int64), np.arange(u.size)))
+    windows = np.lib.stride_tricks.sliding_window_view(negated_u, widest)
+    positions = np.lib.stride_tricks.sliding_window_view(position, widest)
     chunk = max(1, (1 << 20) // widest)
-    for a in range(0, n - k, chunk):
-        b = min(a + chunk, n - k)
-        negated = np.where(positions[a:b] >= start[a:b, None], windows[a:b], np.inf)
+    for a in range(0, at.size, chunk):
+        b = min(a + chunk, at.size)
+        # each query's last ``widest`` values (oldest first), those before its window's start set last
+        ends = at[a:b]
+        negated = np.where(positions[ends] >= start[a:b, None], windows[ends], np.inf)
         if deepest + 1 < widest:  # the deepest+1 largest first (in any order), then sorted
             negated = np.partition(negated, deepest, axis=1)[:, : deepest + 1]
         out[a:b] = -np.sort(negated, axis=1)[np.arange(b - a), rank[a:b]]
-    return out, t[keep], u[keep]
+    return out
+
+
+def _ranked_blocks(
+    u: NDArray[np.float64],
+    start: NDArray[np.int64],
+    at: NDArray[np.int64],
+    rank: NDArray[np.int64],
+    widest: int,
+    deepest: int,
+) -> NDArray[np.float64]:
+    """:func:`_ranked_direct` in O(values × ranks): the values cut into blocks of ``widest``, each position
+    holding the ``deepest + 1`` largest of its block up to it and from it on. A window that spans two
+    blocks is the end of one and the start of the next, whose largest values merge into the window's; one
+    within a block spans two of a second cut, half a block further; the few within a block of both (no
+    longer than half a block) are picked whole. The values picked are the windows' own: the same numbers
+    as :func:`_ranked_direct`."""
+    size, keep = widest, deepest + 1
+    out = np.empty(at.size)
+    todo = np.arange(at.size)
+    for offset in (0, size // 2):
+        if todo.size == 0:
+            break
+        first, last = start[todo] + offset, at[todo] + offset
+        spans = first // size != last // size
+        if not spans.any():
+            continue
+        done, first, last = todo[spans], first[spans], last[spans]
+        todo = todo[~spans]
+        before, upto = _block_tops(u, offset, size, keep)
+        blocks = before.shape[-1] // size
+        tails = first % size * blocks + first // size  # the tables' columns of the window's first and last
+        heads = last % size * blocks + last // size
+        # the k-th largest of the window's two parts: the largest over splits (a from the tail, k − a from
+        # the head) of the smaller of the tail's a-th and the head's (k − a)-th largest (the 0th: +inf)
+        k = rank[done] + 1
+        for kk in np.flatnonzero(np.bincount(k)).tolist():
+            which = slice(None) if kk == k[0] and (k == kk).all() else np.flatnonzero(k == kk)
+            tail, head = tails[which], heads[which]
+            best = before[kk - 1].take(tail)  # all from the tail
+            np.maximum(best, upto[kk - 1].take(head), out=best)  # all from the head
+            for a in range(1, kk):
+                np.maximum(best, np.minimum(before[a - 1].take(tail), upto[kk - a - 1].take(head)), out=best)
+            out[done[which]] = best
+    if todo.size:
+        out[todo] = _ranked_direct(
+            u, start[todo], at[todo], rank[todo], int((at[todo] - start[todo]).max()) + 1, deepest
+        )
+    return out
+
+
+def _block_tops(
+    u: NDArray[np.float64], offset: int, size: int, keep: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """For positions cut into blocks of ``size`` (the first ``offset`` short: position p is at p + offset),
+    the ``keep`` largest values of each block from a position to its end and from its start up to the
+    position: row r the (r+1)-th largest (-inf where fewer), column j·blocks + b for the j-th value of
+    block b."""
+    blocks = -(-(u.size + offset) // size)
+    grid = np.full(blocks * size, -np.inf)
+    grid[offset : offset + u.size] = u
+    by_column = grid.reshape(blocks, size).T.copy()  # row j: every block's j-th value
+    before = np.empty((keep, size, blocks))
+    upto = np.empty((keep, size, blocks))
+    smaller = np.empty(blocks)
+    for tops, columns in ((upto, range(size)), (before, range(size - 1, -1, -1))):
+        top = np.full((keep, blocks), -np.inf)
+        for j in columns:
+            x = by_column[j]
+            for r in range(keep - 1, 0, -1):  # x inserted in order, the smallest dropped
+                np.minimum(top[r - 1], x, out=smaller)
+                np.maximum(top[r], smaller, out=top[r])
+            np.maximum(top[0], x, out=top[0])
+            tops[:, j] = top
+    return before.reshape(keep, -1), upto.reshape(keep, -1)
 
 
 def pairing_error_rad_s(

@@ -271,7 +271,9 @@ _RESULT_COLUMNS = (
 )
 
 
-def _current_sum_flags(table: TelemetryTable, profile: ThresholdProfile) -> NDArray[np.int16] | None:
+def _current_sum_flags(
+    table: TelemetryTable, profile: ThresholdProfile, by_time: NDArray[np.intp] | None = None
+) -> NDArray[np.int16] | None:
     """CURRENT_SUM flags per row where the ESC currents' sum disagrees with the battery monitor; none where
     the table's calibration says the vehicle's ESCs and battery monitor are not related
     (``meta["esc_sum_checked"]`` False, :func:`~..model.vehicle.esc_sum_checked`)."""
@@ -280,7 +282,7 @@ def _current_sum_flags(table: TelemetryTable, profile: ThresholdProfile) -> NDAr
     checked = table.meta.get("esc_sum_checked", True)
     if esc is None or battery is None or not checked or not np.isfinite(battery).any():
         return None
-    order = np.argsort(table["time_s"], kind="stable")
+    order = np.argsort(table["time_s"], kind="stable") if by_time is None else by_time
     check = CurrentSumCheck(profile.plausibility, table.motors())
     mismatch = check.update(table["time_s"][order], table["motor"][order], esc[order], battery[order])
     flags = np.zeros(len(table), dtype=np.int16)
@@ -307,7 +309,10 @@ def diagnose(
     bus = ordered.get("bus_voltage_v")
     command = ordered.get("throttle")
     sensor_current = ordered.get("esc_current_a")
-    sum_flags = _current_sum_flags(ordered, profile)
+    # rows in the order the live agent receives them (time, then motor number within one message): the
+    # table is by motor, then time, so a stable sort by time alone gives that order
+    by_time = np.argsort(ordered["time_s"], kind="stable")
+    sum_flags = _current_sum_flags(ordered, profile, by_time)
     n = len(ordered)
     out: dict[str, NDArray] = {
         "state": np.zeros(n, dtype=np.int8),
@@ -335,8 +340,8 @@ def diagnose(
     pairing_column = ordered.get("pairing_s")
     pairing = table.meta.get("pairing_s")
 
-    def part(values: NDArray | None, sel: NDArray) -> NDArray | None:
-        return None if values is None else values[sel]
+    def part(values: NDArray | None, sel: NDArray | slice) -> NDArray | None:
+        return None if values is None else values[sel].copy()
 
     omega_all, current_all = ordered["omega_rad_s"], ordered["current_a"]
     for motor in ordered.motors():
@@ -351,28 +356,30 @@ def diagnose(
             out["state"][unmeasured] = MotorState.NO_DATA
         if sel.size == 0:
             continue
+        if sel[-1] - sel[0] + 1 == sel.size:  # one run of rows (the table is by motor): copied as a block
+            sel = slice(int(sel[0]), int(sel[-1]) + 1)
         motor_params = params[motor] if isinstance(params, dict) else params
         context = None
         if motor_params.effects:
             context = {
-                name: np.asarray(ordered[name][sel], dtype=float)
+                name: np.asarray(ordered[name][sel].copy(), dtype=float)
                 for name in ordered.names
                 if ordered[name].dtype.kind in "biuf"
             }
         cols, _ = diagnose_motor(
             motor_params,
             profile,
-            ordered["time_s"][sel],
-            voltage[sel],
-            ordered["omega_rad_s"][sel],
-            ordered["current_a"][sel],
+            ordered["time_s"][sel].copy(),
+            voltage[sel].copy(),
+            ordered["omega_rad_s"][sel].copy(),
+            ordered["current_a"][sel].copy(),
             part(bus, sel),
             command=part(command, sel),
             sensor_current_a=part(sensor_current, sel),
             extra_flags=part(sum_flags, sel),
             context=context,
             pairing_s=(
-                pairing_column[sel]
+                pairing_column[sel].copy()
                 if pairing_column is not None
                 else (None if pairing is None else float(pairing))
             ),
@@ -381,6 +388,8 @@ def diagnose(
         for name, values in cols.items():
             out[name][sel] = values
         if unmeasured.size:
+            if isinstance(sel, slice):
+                sel = np.arange(sel.start, sel.stop)
             before = np.searchsorted(sel, unmeasured) - 1  # the last measured row before each
             out["announced"][unmeasured] = np.where(
                 before >= 0, out["announced"][sel[np.maximum(before, 0)]], MotorState.NORMAL
@@ -388,7 +397,7 @@ def diagnose(
     # Before any fault is announced: does the model describe this vehicle at all? Rows in the order the
     # live agent receives them (time, then motor number within one message).
     check = StreamingDiagnoser.vehicle_check_for(profile, vehicle_motors(table))
-    order = np.lexsort((motors, ordered["time_s"]))
+    order = by_time
     vehicle_fit = np.zeros(n, dtype=np.int8)
     vehicle_fit[order] = check.update(
         ordered["time_s"][order], motors[order], omega_all[order], out["omega_model_rad_s"][order]

@@ -362,11 +362,18 @@ class CurrentSumCheck:
     ) -> NDArray[np.float64]:
         total = np.zeros(t.shape)
         positions = np.arange(t.size)
+        finite = np.isfinite(i)
+        last = np.empty(t.size, dtype=positions.dtype)
         for k, number in enumerate(self.motors):
-            own = (m == number) & np.isfinite(i)
+            own = (m == number) & finite
             # the position of the motor's latest reading at or before each row (−1: none in this call)
-            last = np.maximum.accumulate(np.where(own, positions, -1)) if t.size else positions
-            held = np.where(last >= 0, i[np.maximum(last, 0)], self.latest[k])
+            np.copyto(last, -1)
+            np.copyto(last, positions, where=own)
+            np.maximum.accumulate(last, out=last)
+            if t.size and last[0] >= 0:  # a reading from the first row on: no carried one needed
+                held = i.take(last)
+            else:
+                held = np.where(last >= 0, i[np.maximum(last, 0)], self.latest[k])
             total += held  # NaN until this motor has reported: no sum yet
             if t.size and last[-1] >= 0:
                 self.latest[k] = i[last[-1]]

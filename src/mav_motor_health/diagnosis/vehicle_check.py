@@ -184,7 +184,12 @@ class VehicleCheck:
 
     def _update_arrays(self, t, m, w, wm, turning) -> NDArray[np.int8]:
         n = t.size
-        motors = sorted(set(self.evidence) | {int(x) for x in np.unique(m[turning])})
+        turning_motors = m[turning]
+        if turning_motors.size and turning_motors.min() >= 0 and turning_motors.max() < 1 << 16:
+            seen_motors = np.flatnonzero(np.bincount(turning_motors)).tolist()  # counted, not sorted
+        else:
+            seen_motors = np.unique(turning_motors).tolist()
+        motors = sorted(set(self.evidence) | {int(x) for x in seen_motors})
         # How many motors have evidence, depart faster, depart slower, at each row: each motor's share
         # changes only at its own turning rows, so the counts are sums of those changes
         changes = np.zeros((3, n), dtype=np.int64)
@@ -211,7 +216,9 @@ class VehicleCheck:
                     ]
                 ).astype(np.int64)
             before += share[:, 0]
-            changes[:, seen] += np.diff(share, axis=1)
+            change = np.diff(share, axis=1)
+            moved = np.flatnonzero(change.any(axis=0))  # most rows change no count
+            changes[:, seen[moved]] += change[:, moved]
             if seen.size:
                 ev.samples, ev.speed_sum, ev.speed_model_sum = (
                     int(count[-1]),
@@ -219,7 +226,9 @@ class VehicleCheck:
                     float(model_sum[-1]),
                 )
                 ev.first_s, ev.last_s = first, float(last[-1])
-        evidenced, faster, slower = before[:, None] + np.cumsum(changes, axis=1)
+        counts = np.cumsum(changes, axis=1)
+        counts += before[:, None]
+        evidenced, faster, slower = counts
         out = np.full(n, VehicleFit.FITS, dtype=np.int8)
         out[(faster >= self.needed) | (slower >= self.needed)] = VehicleFit.SPEED_OFF
         out[evidenced < self.needed] = VehicleFit.CHECKING  # (then neither side can reach it either)

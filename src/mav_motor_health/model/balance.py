@@ -209,10 +209,21 @@ def censored_mean(mean_a: ArrayLike, zero_share: ArrayLike) -> FloatArray:
     m = np.asarray(mean_a, dtype=float)
     p = np.clip(np.asarray(zero_share, dtype=float), 0.0, MAX_ZERO_SHARE)
     censored = p > 1e-6
-    z = ndtri(1.0 - np.where(censored, p, 0.5))
-    pdf = np.exp(-0.5 * z * z) / np.sqrt(2.0 * np.pi)
-    sigma = m / (z * ndtr(z) + pdf)
-    return np.where(censored & np.isfinite(p), z * sigma, m)
+    if censored.all() or m.ndim == 0 or p.shape != m.shape:
+        z = ndtri(1.0 - np.where(censored, p, 0.5))
+        pdf = np.exp(-0.5 * z * z) / np.sqrt(2.0 * np.pi)
+        sigma = m / (z * ndtr(z) + pdf)
+        return np.where(censored & np.isfinite(p), z * sigma, m)
+    # the same, worked out only where there are zeros (the rest keep the readings' mean)
+    out = m.copy()
+    at = np.flatnonzero(censored)
+    if at.size:
+        share, mean = p.ravel()[at], m.ravel()[at]
+        z = ndtri(1.0 - share)
+        pdf = np.exp(-0.5 * z * z) / np.sqrt(2.0 * np.pi)
+        sigma = mean / (z * ndtr(z) + pdf)
+        out.ravel()[at] = np.where(np.isfinite(share), z * sigma, mean)
+    return out
 
 
 def linearised_slopes(params: MotorParams, omega_rad_s: ArrayLike) -> tuple[FloatArray, FloatArray]:

@@ -129,6 +129,11 @@ def first_order_responses(
     # The decay of each interval, Δt/τ: the first from each row's carried time
     first_decay = _decay(np.clip(t[:, 0] - carry_t, 0.0, None), tau3[:, :, 0])
     decay = _decay(np.clip(t[:, 1:] - t[:, :-1], 0.0, None), tau3[:, :, 1:])
+    if times == 1:
+        out = _responses_one_time_row(
+            x, carries, carry_x, carry_y, first_decay.reshape(rows), decay.reshape(-1, n - 1)
+        )
+        return out, _carries_at_last(t, x, out, carries, counts)
     a3 = np.empty((groups, times, n))
     with np.errstate(invalid="ignore"):
         a3[:, :, 0] = np.exp(-first_decay)
@@ -168,19 +173,96 @@ def first_order_responses(
     out = affine_recurrence(a, b, y0)
     for r in np.flatnonzero(first).tolist():
         out[r, : first[r]] = carries[r].output
-    # each row's carry at its last sample
+    return out, _carries_at_last(t, x, out, carries, counts)
+
+
+def _responses_one_time_row(
+    x: FloatArray,
+    carries: Sequence[ResponseCarry],
+    carry_x: FloatArray,
+    carry_y: FloatArray,
+    first_decay: FloatArray,
+    decay: FloatArray,
+) -> FloatArray:
+    """:func:`first_order_responses`' recurrence for targets that share one row of times: the same a's
+    and b's, formed with fewer passes over the samples, and the a's of all rows one array where they agree
+    (every target finite, one row of time constants). ``decay``: the intervals' decays (one row, or one
+    per target); ``first_decay``: each target's first, from its carried time."""
+    rows, n = x.shape
+    with np.errstate(invalid="ignore"):
+        a_first = np.exp(-first_decay)
+        a_rest = np.exp(-decay)
+    # a restart (no lag, or no previous sample) gives the target itself: a = 0, b = x
+    restart_first = ~(first_decay < _RESTART_DECAY)
+    unlagged = ~(decay < _RESTART_DECAY)
+    a_rest[unlagged] = 0.0
+    finite = np.isfinite(x)
+    all_finite = bool(finite.all())
+    new = ~np.isfinite(carry_y)  # no output yet: undefined until the first finite target, which starts it
+    if all_finite:
+        restart_first |= new  # the first target: each row's first
+    else:
+        restart_first &= finite[:, 0]
+    a_first[restart_first] = 0.0
+    a: FloatArray
+    if all_finite and decay.shape[0] == 1 and (a_first == a_first[0]).all():
+        row = np.empty(n)
+        row[0], row[1:] = a_first[0], a_rest[0]
+        a = np.broadcast_to(row, (rows, n))
+        one_minus: FloatArray = 1.0 - row
+    else:
+        a = np.empty((rows, n))
+        a[:, 0], a[:, 1:] = a_first, a_rest
+        if not all_finite:
+            np.copyto(a, 1.0, where=~finite)  # a missing input holds the output: a = 1, b = 0
+        one_minus = 1.0 - a
+    # the mean input over each interval (the first: with the carried input, if any; after a missing
+    # input: the input itself)
+    b = np.empty((rows, n))
+    np.add(x[:, :-1], x[:, 1:], out=b[:, 1:])
+    b[:, 1:] *= 0.5
+    with np.errstate(invalid="ignore"):
+        b[:, 0] = np.where(np.isfinite(carry_x), 0.5 * (carry_x + x[:, 0]), x[:, 0])
+    if not all_finite:
+        np.copyto(b[:, 1:], x[:, 1:], where=~finite[:, :-1])
+    b *= one_minus
+    if not all_finite:
+        np.copyto(b, 0.0, where=~finite)
+    b[restart_first, 0] = x[restart_first, 0]
+    columns = np.flatnonzero(unlagged.any(axis=0))
+    if columns.size:
+        at = columns + 1
+        restart = np.broadcast_to(unlagged[:, columns], (rows, columns.size)) & finite[:, at]
+        b[:, at] = np.where(restart, x[:, at], b[:, at])
+    y0 = np.where(new, 0.0, carry_y)
+    first = np.zeros(rows, dtype=np.int64)
+    if not all_finite:
+        for r in np.flatnonzero(new).tolist():
+            first[r] = int(np.argmax(finite[r])) if finite[r].any() else n
+            if first[r] < n:
+                a[r, first[r]], b[r, first[r]] = 0.0, x[r, first[r]]
+    out = affine_recurrence(a, b, y0)
+    for r in np.flatnonzero(first).tolist():
+        out[r, : first[r]] = carries[r].output
+    return out
+
+
+def _carries_at_last(
+    t: FloatArray, x: FloatArray, out: FloatArray, carries: Sequence[ResponseCarry], counts: Sequence[int]
+) -> list[ResponseCarry]:
+    """Each row's carry at its last sample (a row without samples keeps its own)."""
+    rows, times = len(carries), t.shape[0]
     at = np.maximum(np.asarray(counts) - 1, 0)
     index = np.arange(rows)
     last_times = t[index % times, at].tolist()
     inputs = x[index, at].tolist()
     outputs = out[index, at].tolist()
-    news = [
+    return [
         carry
         if count == 0
         else ResponseCarry(time_s=time, input=value if math.isfinite(value) else carry.input, output=output)
         for carry, count, time, value, output in zip(carries, counts, last_times, inputs, outputs)
     ]
-    return out, news
 
 
 def _decay(dt: FloatArray, tau: FloatArray) -> FloatArray:
@@ -247,27 +329,65 @@ def affine_recurrence(a: ArrayLike, b: ArrayLike, y0: ArrayLike) -> FloatArray:
                 out[:, k] = y_col
         return out.reshape(a_in.shape)
     rows = -(-n // _COLUMNS)
-    size = rows * _COLUMNS
-
-    def columns(values: FloatArray, pad: float) -> FloatArray:
-        # (columns, series × rows): one column of every row of every series is a contiguous vector
-        padded = np.full((series, size), pad)
-        padded[:, :n] = values
-        return (
-            padded.reshape(series, rows, _COLUMNS).transpose(2, 0, 1).reshape(_COLUMNS, series * rows).copy()
-        )
-
-    gain, local = columns(a2, 1.0), columns(b2, 0.0)
+    # one series' a's where all share them (several quantities low-passed at the same times): their
+    # products are worked out once, the same numbers for every series
+    shared = series > 1 and (a2.strides[0] == 0 or bool((a2[1:] == a2[0]).all()))
+    gain = _to_columns(a2[:1] if shared else a2, rows, 1.0)
+    local = _to_columns(b2, rows, 0.0)
+    gain3 = gain.reshape(_COLUMNS, -1, rows)  # (columns, 1 or series, rows)
+    local3 = local.reshape(_COLUMNS, series, rows)
+    scratch = np.empty((series, rows))
     for j in range(1, _COLUMNS):
-        local[j] += gain[j] * local[j - 1]
-    np.multiply.accumulate(gain, axis=0, out=gain)  # the product of the a's since each row began
-    ends = affine_recurrence(gain[-1].reshape(series, rows), local[-1].reshape(series, rows), start)
+        np.multiply(gain3[j], local3[j - 1], out=scratch)
+        local3[j] += scratch
+        gain3[j] *= gain3[j - 1]  # the product of the a's since each row began
+    ends = affine_recurrence(np.broadcast_to(gain3[-1], (series, rows)), local3[-1], start)
     starts = np.empty((series, rows))
     starts[:, 0] = start
     starts[:, 1:] = ends[:, :-1]
-    local += gain * starts.reshape(1, series * rows)
-    out = local.reshape(_COLUMNS, series, rows).transpose(1, 2, 0).reshape(series, size)[:, :n]
-    return out.reshape(a_in.shape)
+    for j in range(_COLUMNS):  # the start's share, column by column
+        np.multiply(gain3[j], starts, out=scratch)
+        local3[j] += scratch
+    return _from_columns(local, series, n).reshape(a_in.shape)
+
+
+#: rows of :func:`affine_recurrence`'s layout moved at a time (a few hundred kB: the moves stay in cache)
+_MOVE_ROWS = 512
+
+
+def _to_columns(values: FloatArray, rows: int, pad: float) -> FloatArray:
+    """``values`` (series × n) as :func:`affine_recurrence` steps them: ``rows`` rows of :data:`_COLUMNS`
+    samples per series (the last padded with ``pad``), column j of every row of every series one
+    contiguous vector: (columns, series × rows)."""
+    series, n = values.shape
+    out = np.empty((_COLUMNS, series, rows))
+    full = n // _COLUMNS
+    blocks = values[:, : full * _COLUMNS].reshape(series, full, _COLUMNS)
+    for s in range(series):
+        for r in range(0, full, _MOVE_ROWS):
+            end = min(r + _MOVE_ROWS, full)
+            out[:, s, r:end] = blocks[s, r:end].T
+    if full < rows:  # the last row: the rest of the samples, then padding
+        rest = n - full * _COLUMNS
+        out[:rest, :, full] = values[:, full * _COLUMNS :].T
+        out[rest:, :, full] = pad
+    return out.reshape(_COLUMNS, series * rows)
+
+
+def _from_columns(columns: FloatArray, series: int, n: int) -> FloatArray:
+    """:func:`_to_columns` undone: the first ``n`` samples of each series (series × n)."""
+    rows = columns.shape[1] // series
+    by_row = columns.reshape(_COLUMNS, series, rows)
+    out = np.empty((series, n))
+    full = n // _COLUMNS
+    blocks = out[:, : full * _COLUMNS].reshape(series, full, _COLUMNS)
+    for s in range(series):
+        for r in range(0, full, _MOVE_ROWS):
+            end = min(r + _MOVE_ROWS, full)
+            blocks[s, r:end] = by_row[:, s, r:end].T
+    if full < rows:
+        out[:, full * _COLUMNS :] = by_row[: n - full * _COLUMNS, :, full].T
+    return out
 
 
 def _response_scalar(

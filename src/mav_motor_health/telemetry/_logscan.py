@@ -369,12 +369,16 @@ def crc_x25_rows(rows: NDArray[np.uint8], lengths: NDArray[np.int64], extra: int
     """
     out = np.zeros(len(rows), dtype=np.uint16)
     table = _CRC_TABLE
-    for length in np.unique(lengths).tolist():
-        sel = np.flatnonzero(lengths == length)
-        pairs = np.ascontiguousarray(rows[sel, : length - length % 2]).view("<u2")
+    kinds = np.unique(lengths).tolist()
+    for length in kinds:
+        sel = np.flatnonzero(lengths == length) if len(kinds) > 1 else np.arange(len(rows))
+        # the rows' byte pairs, column by column (one transposing copy)
+        pairs = np.ascontiguousarray(
+            rows[sel, : length - length % 2].reshape(len(sel), -1, 2).transpose(1, 0, 2)
+        ).view("<u2")[:, :, 0]
         crc = np.full(len(sel), 0xFFFF, dtype=np.uint16)
         mixed = np.empty_like(crc)
-        for pair in np.ascontiguousarray(pairs.T):
+        for pair in pairs:
             np.bitwise_xor(crc, pair, out=mixed)
             np.take(_CRC_TABLE16, mixed, out=crc, mode="clip")
         if length % 2:

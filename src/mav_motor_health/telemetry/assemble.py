@@ -163,13 +163,26 @@ class HeldValues:
             present = present[order] if present is not None else None
         time_s, value = self._with_carried(t_source, v_source)
         # the last row at or before each target (row 0: the carried one), then the last with a value
-        row = np.searchsorted(t_source, t_target, side="right")
+        row = _search_right(t_source, t_target)
         cols: NDArray[np.int64]
         if signal is None:  # every signal at every target: a row per target, a column per signal
             row, cols, t_target = row[:, None], self._signals, t_target[:, None]
         else:
             cols = np.asarray(signal, dtype=np.int64)
         last = _last_present(present)
+        if last is None and signal is None:  # a row per target, a column per signal: column by column
+            held_value, held_age = np.empty((len(cols), len(t_target))), np.empty((len(cols), len(t_target)))
+            rows_1d, targets_1d = row[:, 0], t_target[:, 0]
+            for c in cols.tolist():
+                age_c = targets_1d - time_s[:, c].take(rows_1d)
+                paired_c = (age_c >= 0) & (age_c <= self.max_age_s)  # NaN (none held): False
+                np.copyto(held_value[c], np.nan)
+                np.copyto(held_value[c], value[:, c].take(rows_1d), where=paired_c)
+                np.copyto(held_age[c], np.nan)
+                np.copyto(held_age[c], age_c, where=paired_c)
+            end = len(t_source)
+            self.time_s, self.value = time_s[end, self._signals], value[end, self._signals]
+            return held_value.T, held_age.T
         if last is not None:
             row = last[row, cols]
         age_s = t_target - time_s[row, cols]
@@ -221,13 +234,24 @@ class MessageIntervals:
         out = np.empty(t.shape)
         if t.size == 0:
             return out
-        order = np.lexsort((t, sig))  # by signal, then time; ties in the order given
+        # by signal, then time, ties in the order given (a log's table is so already)
+        grouped = t.size < 2 or _grouped_in_time(sig, t)
+        order = np.arange(t.size) if grouped else np.lexsort((t, sig))
         ts, ss = t[order], sig[order]
         bounds = np.flatnonzero(np.diff(ss)) + 1
         means = np.empty(ts.shape)
+        done: list[tuple[NDArray[np.float64], int, int]] = []  # signals worked out: times, where
         for a, b in zip([0, *bounds.tolist()], [*bounds.tolist(), ts.size]):
             carried = self.recent[int(ss[a])]
             times = np.concatenate((carried, ts[a:b]))
+            same = next(
+                (d for d in done if d[2] - d[1] == b - a and np.array_equal(d[0], times)), None
+            )  # the same carried and new times
+            if same is not None:  # a signal with the very same times (ESCs of one message): the same
+                means[a:b] = means[same[1] : same[2]]
+                self.recent[int(ss[a])] = self.recent[int(ss[same[1]])]
+                continue
+            done.append((times, a, b))
             at = np.arange(carried.size, times.size)
             first = np.minimum(np.searchsorted(times, times[at] - self.window_s, side="left"), at)
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -240,6 +264,56 @@ class MessageIntervals:
             self.recent[int(ss[a])] = times[keep:]
         out[order] = means
         return out
+
+
+def _search_right(t_source: NDArray[np.float64], t_target: NDArray[np.float64]) -> NDArray[np.int64]:
+    """``np.searchsorted(t_source, t_target, side="right")`` (``t_source`` sorted) for targets made of runs
+    in increasing time (a table's motors, by motor then time): each run merged with the sources, and looked
+    up once for runs of the very same times (the motors one message stamps)."""
+    if t_target.ndim != 1 or t_target.size < 2 * t_source.size or not np.isfinite(t_source).all():
+        return np.searchsorted(t_source, t_target, side="right")
+    breaks = np.flatnonzero(t_target[1:] < t_target[:-1]) + 1
+    if breaks.size > 64 or not np.isfinite(t_target).all():
+        return np.searchsorted(t_source, t_target, side="right")
+    out = np.empty(t_target.shape, dtype=np.intp)
+    done: list[tuple[int, int]] = []
+    for a, b in zip([0, *breaks.tolist()], [*breaks.tolist(), t_target.size]):
+        run = t_target[a:b]
+        same = next(
+            (d for d in done if d[1] - d[0] == b - a and np.array_equal(t_target[d[0] : d[1]], run)), None
+        )
+        if same is not None:
+            out[a:b] = out[same[0] : same[1]]
+            continue
+        # the sources at or before each target: source i counts from the first target not below it on
+        counted_from = np.searchsorted(run, t_source, side="left")
+        out[a:b] = np.cumsum(np.bincount(counted_from, minlength=run.size + 1)[: run.size])
+        done.append((a, b))
+    return out
+
+
+def _grouped_in_time(signal: NDArray[np.int64], time_s: NDArray[np.float64]) -> bool:
+    """Whether entries are already ordered by signal, then time (what a stable sort would leave as it is)."""
+    step = np.diff(signal)
+    return bool((step >= 0).all() and ((step > 0) | (np.diff(time_s) >= 0)).all())
+
+
+def held_together(
+    series: Mapping[str, Series], target_time_s: NDArray[np.float64], max_age_s: float
+) -> dict[str, NDArray[np.float64]]:
+    """:func:`held` of several signals at once (values only): signals that share their times (the same
+    array: fields of one message) are looked up together."""
+    groups: dict[int, list[str]] = {}
+    for name, (times, _) in series.items():
+        groups.setdefault(id(times), []).append(name)
+    out = {}
+    for names in groups.values():
+        times = series[names[0]][0]
+        values = np.column_stack([np.asarray(series[name][1], dtype=float) for name in names])
+        value, _ = HeldValues(len(names), max_age_s).hold(times, values, target_time_s)
+        for k, name in enumerate(names):
+            out[name] = value[:, k]
+    return out
 
 
 def pairing_uncertainty(
@@ -306,17 +380,18 @@ def motor_table(
     # an ESC index outside 0..31 is a damaged record (autopilots number at most 32 ESCs): dropped
     in_range = (slots >= 0) & (slots < MAX_ESC_SLOTS)
     slot_motor = np.zeros(MAX_ESC_SLOTS, dtype=np.int64)
-    for slot in np.unique(slots[in_range]).tolist():
+    for slot in np.flatnonzero(np.bincount(slots[in_range], minlength=MAX_ESC_SLOTS)).tolist():
         slot_motor[slot] = motor_of_slot.get(int(slot)) or 0
     motors_all = np.where(in_range, slot_motor[np.clip(slots, 0, MAX_ESC_SLOTS - 1)], 0)
     keep = np.flatnonzero(motors_all > 0)
-    # Rows ordered by motor, then time: logs write ESC samples in time order, so a stable sort by motor
-    # is enough; otherwise sort by both.
-    t_kept = esc.time_s[keep]
-    if len(t_kept) < 2 or np.all(np.diff(t_kept) >= 0):
-        keep = keep[np.argsort(motors_all[keep], kind="stable")]
+    # Rows ordered by motor, then time: logs write ESC samples in time order, or each motor's in time
+    # order, so a stable sort by motor is enough; otherwise sort by both.
+    t_kept, m_kept = esc.time_s[keep], motors_all[keep]
+    by_motor = np.argsort(m_kept.astype(np.uint8) if m_kept.max(initial=0) < 256 else m_kept, kind="stable")
+    if _grouped_in_time(m_kept[by_motor], t_kept[by_motor]):
+        keep = keep[by_motor]  # what sorting by motor, then time, gives
     else:
-        keep = keep[np.lexsort((t_kept, motors_all[keep]))]
+        keep = keep[np.lexsort((t_kept, m_kept))]
     time_s = esc.time_s[keep]
     motors = motors_all[keep]
     columns: dict[str, NDArray[Any]] = {
@@ -352,12 +427,17 @@ def motor_table(
     if ages.size:
         meta["command_age_s"] = float(np.percentile(ages, 95))
         meta["pairing_s"] = max(meta["command_age_s"], float(meta.get("sample_time_uncertainty_s") or 0.0))
-    if battery_voltage is not None and len(battery_voltage[0]):
-        battery, _ = held(battery_voltage, time_s, CONTEXT_MAX_AGE_S)
-        columns["bus_voltage_v"] = bus_voltage_or_battery(columns["bus_voltage_v"], battery)
-    for name, series in context.items():
-        if len(series[0]):
-            columns[name], _ = held(series, time_s, CONTEXT_MAX_AGE_S)
+    # the context held at each sample, signals that share their times looked up together
+    wanted = {name: series for name, series in context.items() if len(series[0])}
+    with_battery = battery_voltage is not None and len(battery_voltage[0]) > 0
+    if with_battery:
+        wanted[" battery"] = battery_voltage  # type: ignore[assignment]
+    found = held_together(wanted, time_s, CONTEXT_MAX_AGE_S)
+    if with_battery:
+        columns["bus_voltage_v"] = bus_voltage_or_battery(columns["bus_voltage_v"], found.pop(" battery"))
+    for name in context:
+        if name in found:
+            columns[name] = found[name]
     # What the motor sees, exactly as the live agent computes it (ESC as an ideal PWM stage):
     # voltage_v = throttle × bus voltage, current_a = ESC current / throttle (NaN at a tiny command).
     columns["voltage_v"], columns["current_a"] = mavlink_esc.motor_inputs(

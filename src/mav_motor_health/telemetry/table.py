@@ -121,13 +121,20 @@ class TelemetryTable:
         )
 
     def motors(self) -> list[int]:
-        return [int(m) for m in np.unique(self.columns["motor"])]
+        motor = self.columns["motor"]
+        if motor.size and motor.min() >= 0 and motor.max() < 1 << 16:  # motor numbers: counted, not sorted
+            return np.flatnonzero(np.bincount(motor)).tolist()
+        return [int(m) for m in np.unique(motor)]
 
     def for_motor(self, motor: int) -> TelemetryTable:
         return self.select(self.columns["motor"] == motor)
 
     def sorted_by_motor_time(self) -> TelemetryTable:
-        order = np.lexsort((self.columns["time_s"], self.columns["motor"]))
+        motor, time_s = self.columns["motor"], self.columns["time_s"]
+        step = np.diff(motor)
+        if (step >= 0).all() and ((step > 0) | (np.diff(time_s) >= 0)).all():
+            return self  # sorted already (a log's table): what the sort would leave as it is
+        order = np.lexsort((time_s, motor))
         if np.all(order == np.arange(len(order))):
             return self
         return self.select(order)
