@@ -123,10 +123,13 @@ def test_a_motor_side_reading_is_told_and_a_flight_that_cannot_tell_says_so(pape
     phase = np.where(duty > 0.05, cols["esc_current_a"] / np.maximum(duty, 0.05), np.nan)
     motor_side = identify(TelemetryTable({**cols, "esc_current_a": phase}), load_motor_params())
     assert motor_side.current.side == "motor" and motor_side.current.side_test.side == "motor"
-    # at a constant bus voltage nothing parts the two sides (the old choice took the smaller residual,
-    # "motor" here): the side is left undetermined, the current unjudged, R and k_e still fitted
+    # at a constant bus voltage nothing parts the two sides: the test says so, and the side is the
+    # smaller residual's ("motor" here), stated as a guess
     flat = np.full(len(paper_flight), float(np.nanmedian(cols["bus_voltage_v"])))
     result = identify(TelemetryTable({**cols, "bus_voltage_v": flat}), load_motor_params())
-    assert result.current.side == "unusable"
+    test = result.current.side_test  # None: the voltage never moved, nothing to fit
+    assert test is None or test.side == "undetermined"
+    smaller = min(result.current.residual_v, key=result.current.residual_v.__getitem__)
+    assert result.current.side == smaller
     assert any("does not tell which side" in f for f in result.findings)
-    assert result.determined_by["R_ohm"].startswith("data") and "side" in result.determined_by["R_ohm"]
+    assert result.determined_by["R_ohm"].endswith(f"as for the {smaller} side (a guess)")

@@ -16,17 +16,17 @@ every instant (see :mod:`.balance`), so identification fits them as balances ove
    scalar search), for each convention on its own. A reading that does not follow the load at all
    (constant, zero, uncorrelated) is "unusable": then R comes from the prior and the current is left to
    the speed-only path.
-1b. **Which convention**: not the smaller residual (both are reported). The two balances differ only in
-   R·i's share of the duty, a few hundredths of a volt, and the commands' pairing biases them by more,
-   so the residuals chose at random (11 of 29 development worlds right). The side comes from a physical
-   consequence instead (:func:`current_side_test`): at a given speed the load sets the motor current
+1b. **Which convention**: where the flight tells, not the smaller residual (both are reported). The two
+   balances differ only in R·i's share of the duty, a few hundredths of a volt, and the commands' pairing
+   biases them by more, so the residuals chose at random (11 of 29 development worlds right). The side
+   comes from a physical consequence instead (:func:`current_side_test`): at a given speed the load sets the motor current
    and the duty that drives it goes as ``1/V_bus``, so an input-side reading ``g·d·i`` has elasticity −1
    with the bus voltage and a motor-side one 0; the pack's discharge over the flight measures which
    (no command, no idle offset enters). Where the estimate lies less than :data:`SIDE_MARGIN_SE`
    standard errors beyond the midpoint, or more than that from the likelier side's own value, the
-   flight does not tell: R and k_e are fitted on the convention with the smaller residual (the
-   speed-only diagnosis needs them), the reading is reported "unusable" (the diagnosis judges the speed
-   alone) and a finding says why.
+   flight does not tell: the convention with the smaller residual is kept, as before the test, and a
+   finding says it is a guess (the diagnosis measures its noise and offsets through it on the same
+   flight; set aside, the current named no fault on the held-out worlds where it had; docs/model.md).
 2. **Current scale** ``g``: a current sensor's gain cannot be told from the motor's R by the motor's own
    data (R/g, g·C_p, g·J explain the same log). Where the log has the battery monitor, the ESCs' summed
    input current against the battery current gives ``g`` (a regression with an offset for the rest of the
@@ -462,7 +462,7 @@ def identify(
     findings: list[str] = []
     c0_stderr = math.inf
     side_test: SideTest | None = None
-    reported_side = ""  # the side the params file states, where it is not the side fitted on
+    guessed = False  # the side the smaller residual chose, the side test not telling
     if sum(usable.values()) >= max(1, len(usable) // 2 + 1):
         with_current = {mo: t for mo, t in terms.items() if usable[mo]}
         fits = {side: _pooled_electrical(with_current, side) for side in ("input", "motor")}
@@ -474,15 +474,16 @@ def identify(
         if side_test is not None and side_test.side in SIDE_ELASTICITY:
             side = side_test.side
         else:
-            # R and k_e still come from the balance that fits the better (the speed-only diagnosis needs
-            # them), but the reading is not trusted: the params file says "unusable"
+            # the side the balance fits the better: a guess, but the diagnosis's noise and each motor's
+            # offset are measured through it on this flight, and on held-out worlds the current read so
+            # still named the faults where setting it aside left the speed alone (docs/model.md)
             side = min(fits, key=lambda s: fits[s][1])
-            reported_side = "unusable"
+            guessed = True
             findings.append(
                 "the flight does not tell which side the ESCs read their current on"
                 + (f" ({side_test.describe()})" if side_test is not None else "")
-                + f": R and k_e are fitted as for the {side} side (the smaller residual), the current is not "
-                "judged (speed only); a flight with more of the battery's discharge would tell"
+                + f": the current is taken as the {side} side's (the balances' smaller residual, which "
+                "often picks the wrong side); a flight with more of the battery's discharge would tell"
             )
         c0, _, c0_stderr = fits[side]
     else:
@@ -570,7 +571,7 @@ def identify(
         "R_ohm": "prior"
         if not r_values
         else ("data" if gain_from == "battery" else "data (x current gain)")
-        + (f" as for the {side} side" if reported_side else ""),
+        + (f" as for the {side} side (a guess)" if guessed else ""),
         "k_e": "data",
         "C_p": "data",
         "B": "data" if err[1] < 0.5 * PRIOR_SHARE * load / w_typ else "prior",
@@ -606,7 +607,7 @@ def identify(
         per_motor=per_motor,
         esc=esc,
         current=CurrentReading(
-            side=reported_side or side,
+            side=side,
             gain=gain,
             gain_from=gain_from,
             offset_a=offset,
