@@ -304,6 +304,13 @@ class ThresholdProfile:
             return self.speed_band_rad_s
         return self.speed_band_rad_s + self._widening(activity_v, 1)
 
+    @property
+    def judges_within_noise_conditions(self) -> bool:
+        """Whether samples are judged only within the speeds, input activity and pairing the vehicle's noise
+        was measured at (``range_margin`` > 0 with bands in noise units): :class:`~.rules.judged.Judged`
+        sets the rest aside, and :class:`~.rules.pairing.PairingLimits` then leaves the pairing to it."""
+        return self.noise_bands > 0 and self.range_margin > 0
+
     def speed_only_band(
         self, speed_band_rad_s: ArrayLike, omega_model_rad_s: ArrayLike
     ) -> NDArray[np.float64]:

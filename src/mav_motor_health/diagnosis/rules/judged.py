@@ -35,7 +35,7 @@ class Judged(Rule):
         profile, state, noise = self.profile, frame.state, frame.noise
         state[(frame.sensor_flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT
         steady = frame.steady
-        if profile.range_margin > 0 and noise is not None and profile.noise_bands > 0:
+        if profile.judges_within_noise_conditions and noise is not None:
             # beyond the speeds identification checked the model at, in busier air than its flight's or
             # paired more loosely (the noise there is an extrapolation): not judged (a stall still is)
             omega, activity, pairing = frame.omega_model_rad_s, frame.activity_v, frame.pairing_error_rad_s

@@ -87,7 +87,7 @@ class PairingLimits(Rule):
         """Per motor (a column), whether its bands are in units of noise measured with the pairing error
         (and the profile limits the judged samples to the pairing that noise was measured at)."""
         profile, noise = self.profile, frame.noise
-        if not (profile.noise_bands > 0 and profile.range_margin > 0 and noise is not None):
+        if not (profile.judges_within_noise_conditions and noise is not None):
             return None
         found = np.array([math.isfinite(n.pairing_error_high_rad_s) for n in noise])
         return found.reshape(-1, 1) if found.any() else None
