@@ -39,7 +39,7 @@ def response_per_sample(t, x, tau, carry=None):
             y = xk
         else:
             mean_in = 0.5 * (prev_x + xk) if math.isfinite(prev_x) else xk
-            a = math.exp(-decay)
+            a = float(np.exp(-decay))  # numpy's exp, as the code's (libm's can differ in the last bit)
             y = a * y + (1.0 - a) * mean_in
         out[k] = y
         prev_t, prev_x = tk, xk

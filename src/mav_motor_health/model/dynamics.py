@@ -423,7 +423,9 @@ def _responses_scalar(
                 y = xk  # no lag (or no past): the target itself
             else:
                 mean_in = 0.5 * (prev_x + xk) if math.isfinite(prev_x) else xk
-                a = math.exp(-decay)
+                # numpy's exp, as the vectorised path's: libm's differs from numpy's SIMD exp in the
+                # last bit for some arguments on some processors (AVX-512), and the paths must agree
+                a = float(np.exp(-decay))
                 y = a * y + (1.0 - a) * mean_in
             values[k] = y
             prev_t, prev_x = tk, xk
