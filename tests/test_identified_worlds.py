@@ -31,3 +31,23 @@ def test_an_identified_world_flies_its_healthy_flights_without_a_fault(world: in
     # not by judging nothing: most of calm air is judged, and judged NORMAL
     assert result.judged_share("calm") > 70.0
     assert result.normal_share("calm") > 99.5
+
+
+def test_a_propeller_that_lost_its_load_is_named_beyond_the_identified_speeds() -> None:
+    # development world 3: the damaged propeller (the paper's, scaled) sends its motor to full command,
+    # about three times the fastest speed of the identification flight, where the model is not judged;
+    # the current it draws is far below what it drew at that fastest speed, which no healthy propeller
+    # does (rules/judged.py): F3.1, and nothing on the motors that compensate
+    result = evaluate_world(
+        3,
+        duration_s=60.0,
+        identification_s=150.0,
+        healthy_flights=0,
+        levels=("calm",),
+        faults=("F3.1",),
+        profile="flight_vehicle",
+    )
+    assert not result.error and not result.refused, result.error or result.refused
+    detection = result.detection("calm", "F3.1")
+    assert detection is not None and detection < 3.0, result.flights
+    assert result.fault_flight_false_events() == 0, result.flights

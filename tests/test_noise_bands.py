@@ -326,3 +326,45 @@ def test_with_the_pairing_measured_the_bands_grow_with_it_and_looser_pairing_is_
     assert looser.mean() > 0.2 and not after["steady"][looser & ~stall].any()
     assert (after["steady"] & ~before["steady"] & ~looser).any()  # judged now, in wider bands
     assert not ((after["sensor_flags"] & SensorIssue.CURRENT_UNPAIRED) != 0).any()
+
+
+def test_a_motor_faster_than_identified_and_drawing_less_than_it_needed_there_is_judged(paper_motor) -> None:
+    """Beyond the identified speeds nothing is judged (the model is an extrapolation), except a motor that
+    turns faster than the fastest identified speed while drawing less current than the model needs *at*
+    that speed: no healthy propeller's load falls as it speeds up (rules/judged.py)."""
+    from mav_motor_health.diagnosis.rules.base import Frame
+    from mav_motor_health.diagnosis.rules.judged import Judged
+    from mav_motor_health.model.equations import current_from_speed
+
+    profile = load_profile("flight_vehicle")
+    top = 600.0
+    noise = [BandNoise(5.0, 0.3, omega_low_rad_s=400.0, omega_high_rad_s=top, current_offset_a=0.2)] * 5
+    floor = float(current_from_speed(paper_motor, (1.0 + profile.range_margin) * top)) + 0.2
+    band = 0.5
+    beyond = 1.3 * top
+    # rows: lost load; healthy at full command (the extrapolated model asks more, the current is above
+    # the floor); lost load read within the range; lost load with an untrusted current; another state
+    omega = np.array([beyond, beyond, 0.95 * top, beyond, beyond])[:, None]
+    current = np.array([0.3 * floor, floor - 0.5 * band, 0.3 * floor, 0.3 * floor, 0.3 * floor])[:, None]
+    state = np.array([MotorState.F3_1, MotorState.F3_1, MotorState.F3_1, MotorState.F3_1, MotorState.F1_1])
+    flags = np.array([0, 0, 0, int(SensorIssue.CURRENT_RANGE), 0], dtype=np.int16)[:, None]
+    rows = omega.shape
+    frame = Frame(
+        params=paper_motor,
+        profile=profile,
+        time_s=np.zeros(rows),
+        voltage_v=np.full(rows, 10.0),
+        omega_rad_s=omega,
+        current_a=current,
+        counts=[1] * 5,
+        noise=noise,
+    )
+    frame.omega_model_rad_s = np.array([2.0 * top, 2.0 * top, 0.9 * top, 2.0 * top, 2.0 * top])[:, None]
+    frame.omega_judged_rad_s, frame.current_judged_a = omega, current
+    frame.current_band_below_a = np.full(rows, band)
+    frame.sensor_flags = flags
+    frame.state = state.astype(np.int8)[:, None]
+    frame.steady = np.ones(rows, dtype=bool)
+    frame.depth = np.zeros(rows)
+    Judged(profile).judge(frame, [None] * 5)
+    assert frame.steady[:, 0].tolist() == [True, False, True, False, False]

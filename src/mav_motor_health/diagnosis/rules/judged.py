@@ -1,5 +1,14 @@
 """Which samples the announcements may count: never a motor fault from a bad sensor, nothing beyond the
-speeds the model was checked at (a stall still), nothing at idle."""
+speeds the model was checked at (a stall still, and a propeller that has lost its load), nothing at idle.
+
+Beyond the speeds identification checked the model at, the model is an extrapolation and its noise
+unknown, so a departure from it is not judged. One departure needs no extrapolation: a healthy propeller's
+load rises with its speed, so a healthy motor turning faster than the fastest speed of the identification
+flight draws at least the current the model needs at that speed, where the model *was* checked. A motor
+turning faster than that and drawing less than that current by more than its band below has lost
+propeller load (F3.1: a broken or thrown blade, which the autopilot answers with full command, beyond any
+speed a healthy flight shows); it is judged however far beyond the range it turns
+(:func:`_unloaded_beyond`)."""
 
 from __future__ import annotations
 
@@ -7,7 +16,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
+from ...model.equations import current_from_speed
 from ..plausibility import SensorIssue
 from ..states import MotorState
 from .base import Frame, Rule
@@ -50,7 +61,7 @@ class Judged(Rule):
                     for r, n in enumerate(noise)
                 ]
             )
-            steady = steady & (known | np.isin(state, TRANSIENT_OK))
+            steady = steady & (known | np.isin(state, TRANSIENT_OK) | _unloaded_beyond(frame))
         eligible = (steady | np.isin(state, TRANSIENT_OK)) & (state != MotorState.NO_DATA)
         if frame.command is not None and profile.min_command > 0:
             idle = np.asarray(frame.command, dtype=float) < profile.min_command  # idle and spin-up
@@ -59,3 +70,24 @@ class Judged(Rule):
         frame.depth[state == MotorState.SENSOR_FAULT] = 1.0
         frame.steady, frame.eligible = steady, eligible
         return carries
+
+
+def _unloaded_beyond(frame: Frame) -> NDArray[np.bool_]:
+    """Samples the tree reads as F3.1 whose motor turns faster than the top of its identified speed range
+    (widened by ``range_margin``) while drawing less than the model's current at that top, by more than
+    the band below: a propeller that lost load, whatever the model says beyond the range (module doc)."""
+    assert frame.noise is not None
+    margin = frame.profile.range_margin
+    top = np.array([n.omega_high_rad_s for n in frame.noise], dtype=float)
+    top = np.where(np.isfinite(top), (1.0 + margin) * top, np.inf)[:, None]
+    # the current a healthy motor needs at the top of its range (a lower bound beyond it), with each
+    # motor's own offset from the shared model, as its model is judged (rules/offsets.py)
+    offset = np.array([n.current_offset_a for n in frame.noise], dtype=float)[:, None]
+    floor = current_from_speed(frame.params, np.where(np.isfinite(top), top, 0.0)) + offset
+    with np.errstate(invalid="ignore"):
+        return (
+            (frame.state == MotorState.F3_1)
+            & (frame.omega_judged_rad_s > top)
+            & frame.current_trusted()
+            & (frame.current_judged_a + frame.current_band_below_a < floor)
+        )
