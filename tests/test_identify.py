@@ -15,6 +15,8 @@ from mav_motor_health.model.identify import (
     K_BIC_MARGIN,
     SIDE_ELASTICITY,
     SIDE_MARGIN_SE,
+    EscMap,
+    battery_current_pairs,
     electrical_balance_at,
     identify,
 )
@@ -133,3 +135,22 @@ def test_a_motor_side_reading_is_told_and_a_flight_that_cannot_tell_says_so(pape
     assert result.current.side == smaller
     assert any("does not tell which side" in f for f in result.findings)
     assert result.determined_by["R_ohm"].endswith(f"as for the {smaller} side (a guess)")
+
+
+def test_a_battery_monitor_that_lags_gives_the_current_scale_from_the_charges(tmp_path: Path) -> None:
+    # development world 13 (seeded): its battery monitor is a filtered current in the .tlog at 1 Hz, and
+    # regressed bin by bin on it the ESCs' sum has a slope of about 0.47 for a true gain of 1.02, with the
+    # rest of the vehicle drawing -17 A: impossible, so the ratio of the charges both counted is taken
+    world = draw_world(13)
+    log = write_identification_log(13, tmp_path / "world13.tlog")
+    table = sources.read(log)
+    pairs = battery_current_pairs(table, world.current.side, EscMap(world.esc.idle_offset))
+    assert pairs is not None
+    slope, intercept = np.polyfit(pairs[1], pairs[0], 1)
+    assert 0 < slope < 0.6 and -intercept / slope < 0  # attenuated, and a negative draw for the rest
+    result = identify(table, load_motor_params())
+    true_gain = world.current.gain / world.battery.monitor_gain
+    assert result.current.side == world.current.side == "input"
+    assert result.current.gain_from == "battery"
+    assert result.current.gain == pytest.approx(true_gain, rel=0.1)
+    assert result.current.offset_a == 0.0
