@@ -31,8 +31,8 @@ every instant (see :mod:`.balance`), so identification fits them as balances ove
    data (R/g, g·C_p, g·J explain the same log). Where the log has the battery monitor, the ESCs' summed
    input current against the battery current gives ``g`` (a regression with an offset for the rest of the
    vehicle's draw; where that offset comes out negative, the ratio of the charges both counted over the
-   flight, :func:`_battery_gain`); else ``g = 1`` is
-   assumed and R, C_p, B, T_f and J are stated as "scaled by the current sensor's unknown gain".
+   flight, :func:`_battery_gain`); else ``g = 1`` is assumed and R, C_p, B, T_f and J are stated as
+   "scaled by the current sensor's unknown gain".
 3. **Mechanical, with the inertia**: ``k_t·(d·V − k_e·ω)/R = C_p·ω^k + B·ω + T_f + J·dω/dt`` (the current
    the electrical balance implies: it needs no current sensor and no derivative, since the low-passed
    ``J·dω/dt`` is ``J·(ω − ω̄)/τ`` exactly). Linear in (C_p, B, T_f, J) for each k; bounded ≥ 0; B and
@@ -370,12 +370,19 @@ def battery_current_pairs(
     table: TelemetryTable, side: str, esc: EscMap, *, bin_s: float = 1.0
 ) -> tuple[FloatArray, FloatArray] | None:
     """The ESCs' summed input current and the battery monitor's current, each averaged over the same
-    ``bin_s`` bins of the log (a motor-side reading turned into input current with the duty ``esc`` gives);
-    None without the monitor, a reading on every motor, or ten common bins."""
+    ``bin_s`` bins of the log (a motor-side reading turned into input current with the duty ``esc`` gives),
+    over the samples identification uses (turning, under a command); None without the monitor, a reading
+    on every motor, or ten common bins."""
+    return _battery_pairs(_motor_data(table, bin_s), table, side, esc, bin_s)
+
+
+def _battery_pairs(
+    data: Sequence[_MotorData], table: TelemetryTable, side: str, esc: EscMap, bin_s: float = 1.0
+) -> tuple[FloatArray, FloatArray] | None:
+    """:func:`battery_current_pairs` of the motors' samples already gathered."""
     battery = table.get("battery_current_a")
     if battery is None or not np.isfinite(battery).any():
         return None
-    data = _motor_data(table, bin_s)  # the samples identification uses (turning, under a command)
     t0 = float(np.nanmin(table["time_s"]))
     per_motor = []
     for m in data:
@@ -403,9 +410,11 @@ def battery_current_pairs(
     return e, b
 
 
-def _battery_gain(table: TelemetryTable, side: str, esc: EscMap) -> tuple[float, float] | None:
+def _battery_gain(
+    data: Sequence[_MotorData], table: TelemetryTable, side: str, esc: EscMap
+) -> tuple[float, float] | None:
     """(gain, offset A) of the ESCs' summed input current against the battery monitor, or None."""
-    pairs = battery_current_pairs(table, side, esc)
+    pairs = _battery_pairs(data, table, side, esc)
     if pairs is None:
         return None
     e, b = pairs
@@ -545,7 +554,7 @@ def identify(
             per_motor_e[m.motor] = (_speed_only_ke(m, esc, prior), math.nan)
             per_motor_err[m.motor] = (math.nan, math.nan)
             noise[m.motor] = {}
-    gain_fit = _battery_gain(table, side, esc) if side != "unusable" else None
+    gain_fit = _battery_gain(data, table, side, esc) if side != "unusable" else None
     if gain_fit is not None and not BATTERY_GAIN_RANGE[0] <= gain_fit[0] <= BATTERY_GAIN_RANGE[1]:
         findings.append(
             f"the ESCs' summed current is {gain_fit[0]:.2f} x the battery monitor's: too far off to be a "
