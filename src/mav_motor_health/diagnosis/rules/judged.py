@@ -61,7 +61,9 @@ class Judged(Rule):
                     for r, n in enumerate(noise)
                 ]
             )
-            steady = steady & (known | np.isin(state, TRANSIENT_OK) | _unloaded_beyond(frame))
+            if not known.all():  # (the lost-load check only where some sample lies beyond)
+                known = known | _unloaded_beyond(frame)
+            steady = steady & (known | np.isin(state, TRANSIENT_OK))
         eligible = (steady | np.isin(state, TRANSIENT_OK)) & (state != MotorState.NO_DATA)
         if frame.command is not None and profile.min_command > 0:
             idle = np.asarray(frame.command, dtype=float) < profile.min_command  # idle and spin-up
