@@ -26,7 +26,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from mav_motor_health.evaluation.worlds import write_identification_log  # noqa: E402
-from mav_motor_health.model.identify import EscMap, battery_current_pairs  # noqa: E402
+from mav_motor_health.model.identify import (  # noqa: E402
+    EscMap,
+    battery_current_pairs,
+    gain_from_pairs,
+)
 from mav_motor_health.sim.worlds import draw_world  # noqa: E402
 from mav_motor_health.telemetry import sources  # noqa: E402
 
@@ -51,7 +55,7 @@ def one_world(world: int, folder: Path) -> dict | None:
         "slope": float(slope),
         "offset": float(offset),
         "ratio": ratio,
-        "kept": float(slope) if offset >= 0 else ratio,
+        "kept": gain_from_pairs(e, b)[0],  # what identification keeps
     }
 
 

@@ -75,6 +75,7 @@ __all__ = [
     "Identification",
     "battery_current_pairs",
     "electrical_balance_at",
+    "gain_from_pairs",
     "identify",
 ]
 
@@ -415,9 +416,13 @@ def _battery_gain(
 ) -> tuple[float, float] | None:
     """(gain, offset A) of the ESCs' summed input current against the battery monitor, or None."""
     pairs = _battery_pairs(data, table, side, esc)
-    if pairs is None:
-        return None
-    e, b = pairs
+    return None if pairs is None else gain_from_pairs(*pairs)
+
+
+def gain_from_pairs(esc_sum_a: FloatArray, battery_a: FloatArray) -> tuple[float, float]:
+    """(gain, offset A) from :func:`battery_current_pairs`: the regression of the ESCs' sum on the
+    battery's current, or the ratio of the charges both counted where the regression is unphysical."""
+    e, b = esc_sum_a, battery_a
     ratio = float(np.sum(e) / np.sum(b))  # of the charges both counted over the flight
     if np.ptp(b) < 1.0:  # the battery current must move for gain and offset to part
         return ratio, 0.0
