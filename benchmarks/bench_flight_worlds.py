@@ -119,7 +119,10 @@ def print_world(e: WorldEvaluation) -> None:
         )
     else:
         how = "the world's true vehicle"
-    print(f"world {e.world} ({e.description}); {how}; {e.seconds:.0f} s")
+    print(
+        f"world {e.world} ({e.description}); {how}; {e.fault_flight_false_events()} false events on the "
+        f"fault flights' healthy motors; {e.seconds:.0f} s"
+    )
     for level in TURBULENCE_LEVELS:
         acc = " ".join(_pct(e.accuracy(level, f), 5) for f in FAULTS)
         det = " ".join(_secs(e.detection(level, f), 5) for f in FAULTS)

@@ -204,7 +204,7 @@ def test_flights_are_joined_with_a_gap_so_no_balance_spans_two() -> None:
 
 
 def test_the_real_px4_quad_identified_from_its_own_log_replays_without_a_fault(
-    real_logs, tmp_path: Path
+    real_logs, tmp_path: Path, capsys
 ) -> None:
     log = real_logs / "px4" / "esc_status_log.ulg"
     vehicle_file = tmp_path / "px4.toml"
@@ -213,14 +213,23 @@ def test_the_real_px4_quad_identified_from_its_own_log_replays_without_a_fault(
     assert vehicle.current is not None and vehicle.current.gain_from == "battery"
     # each motor's noise measured on the flight, so that flight_vehicle's bands come from this vehicle
     assert all(vehicle.noise[m]["speed_rad_s"] > 0 for m in range(1, 5)), vehicle.noise
-    for profile in ("testbed", "flight", "flight_vehicle"):
+    for profile in (None, "flight_vehicle"):  # the default for a vehicle file with its noise, and named
+        out = tmp_path / str(profile)
+        chosen = [] if profile is None else ["--profile", profile]
+        assert main(["replay", str(log), "--params", str(vehicle_file), *chosen, "--out", str(out)]) == 0
+        events = (out / "events.jsonl").read_text(encoding="utf-8")
+        assert '"F' not in events and "STALL" not in events and "UNCALIBRATED" not in events, events[:500]
+    # bands in amperes and rad/s set on the project's simulator are refused for this vehicle's own file
+    # (with the ESCs' current read on the input side, as the charges say, they named F1.1/F4.1 here)
+    for profile in ("testbed", "flight"):
         out = tmp_path / profile
         assert (
             main(["replay", str(log), "--params", str(vehicle_file), "--profile", profile, "--out", str(out)])
-            == 0
+            == 2
         )
-        events = (out / "events.jsonl").read_text(encoding="utf-8")
-        assert '"F' not in events and "STALL" not in events and "UNCALIBRATED" not in events, events[:500]
+        said = capsys.readouterr().err
+        assert f"profile {profile!r} has bands in amperes" in said and "'flight_vehicle'" in said
+        assert not out.exists()
 
 
 def test_the_esc_sum_is_checked_against_the_battery_only_where_identification_related_them() -> None:

@@ -545,6 +545,23 @@ def default_profile(vehicle: VehicleParams) -> str:
     return VEHICLE_PROFILE if band_noise_of(vehicle.noise) else FALLBACK_PROFILE
 
 
+def check_profile_for_vehicle(profile: ThresholdProfile, vehicle: VehicleParams) -> None:
+    """Refuse a profile with bands in amperes and rad/s (``noise_bands`` 0) for a vehicle file that
+    carries the vehicle's own band noise (written by ``fit`` from its flight): those bands were set on the
+    project's simulated hexacopter and ignore the noise this vehicle was measured to have; on vehicles
+    unlike the simulator's, and on the real PX4 quad in shared/real_logs, they raise faults on healthy
+    motors (docs/flight.md)."""
+    if profile.noise_bands == 0 and band_noise_of(vehicle.noise):
+        raise ConfigError(
+            f"profile {profile.name!r} has bands in amperes and rad/s set on the project's simulated "
+            "hexacopter, while the vehicle file carries this vehicle's own noise (identified from its "
+            f"flight); on other vehicles such bands name faults on healthy motors. Use {VEHICLE_PROFILE!r} "
+            "(the default for this file)",
+            key="profile",
+            expected=f"a profile with bands in noise units (noise_bands > 0), such as {VEHICLE_PROFILE!r}",
+        )
+
+
 def _motor_tables(top: _Section, name: str, path: Path) -> list[tuple[int, _Section]]:
     """``[name.N]`` tables keyed by motor number N (1..32)."""
     section = top.table(name)

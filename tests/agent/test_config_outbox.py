@@ -74,6 +74,26 @@ def test_bad_config_names_file_key_and_what_was_expected(tmp_path, text, key, ex
         assert expected in message, message
 
 
+def test_a_profile_in_amperes_is_refused_for_a_vehicle_identified_with_its_noise(tmp_path):
+    from mav_motor_health.config import dump_vehicle_params, load_motor_params
+    from mav_motor_health.diagnosis.noise import BandNoise
+    from mav_motor_health.model.vehicle import VehicleParams
+
+    noise = {m: BandNoise(6.0, 0.25, 20.0, 0.4, 900, 3.8, 300.0, 900.0).as_mapping() for m in range(1, 7)}
+    vehicle = tmp_path / "vehicle.toml"
+    vehicle.write_text(dump_vehicle_params(VehicleParams(motor=load_motor_params(), noise=noise)))
+    path = tmp_path / "agent.toml"
+    path.write_text(
+        f"[link]\nconnect = 'udpin:0.0.0.0:14550'\n[model]\nparams = '{vehicle}'\nprofile = 'flight'\n"
+    )
+    with pytest.raises(ConfigError) as info:
+        load_agent_config(path)
+    message = str(info.value)
+    assert str(path) in message and "'model.profile'" in message and "'flight_vehicle'" in message, message
+    path.write_text(f"[link]\nconnect = 'udpin:0.0.0.0:14550'\n[model]\nparams = '{vehicle}'\n")
+    assert load_agent_config(path).profile.name == "flight_vehicle"  # the default for such a file
+
+
 def test_mavlink_urls():
     assert parse_url("/dev/serial0:921600").baud == 921600
     assert parse_url("/dev/ttyACM0").device == "/dev/ttyACM0"

@@ -16,6 +16,7 @@ from typing import Any
 from ..config import (
     DEFAULT_MOTOR,
     _Section,
+    check_profile_for_vehicle,
     default_profile,
     load_motor_params,
     load_profile,
@@ -145,6 +146,10 @@ def load_agent_config(
             for n in range(1, motors + 1)
         }
     the_profile = load_profile(_resolve(profile_name, base))
+    try:
+        check_profile_for_vehicle(the_profile, vehicle)
+    except ConfigError as exc:
+        raise ConfigError(exc.reason, path=where, key="model.profile", expected=exc.expected) from None
     model.done()
 
     statustext = pub.raw("statustext")

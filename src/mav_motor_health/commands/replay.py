@@ -12,6 +12,7 @@ from ..config import (
     DEFAULT_MOTOR,
     FALLBACK_PROFILE,
     VEHICLE_PROFILE,
+    check_profile_for_vehicle,
     default_profile,
     load_profile,
     load_vehicle_params,
@@ -80,6 +81,7 @@ def _window(text: str) -> tuple[float, float]:
 def run(args: argparse.Namespace) -> int:
     vehicle = load_vehicle_params(args.params or DEFAULT_MOTOR)
     profile = load_profile(args.profile or default_profile(vehicle))
+    check_profile_for_vehicle(profile, vehicle)
     if args.params and profile.steady.kind == "balance":
         for missing in vehicle.missing_for_flight():  # said once for the run, not once per log
             warnings.warn(

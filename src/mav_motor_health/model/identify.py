@@ -62,7 +62,10 @@ from ..errors import FitError
 from ..telemetry.table import TelemetryTable
 from .dynamics import first_order_response
 from .esc import ElectricalTerms as _ElectricalTerms  # the ESC map and the electrical balance through it
-from .esc import EscMap  # are shared with the bench fit (estimation.estimate_with_esc)
+from .esc import (
+    EscMap,  # are shared with the bench fit (estimation.estimate_with_esc)
+    motor_current_a,
+)
 from .esc import fit_electrical_balance as _electrical_fit
 from .esc import search_idle_offset as _pooled_electrical
 from .estimation import K_BIC_MARGIN, choose_exponent
@@ -419,41 +422,83 @@ def _battery_gain(
     return None if pairs is None else gain_from_pairs(*pairs)
 
 
+def _charge_ratio(data: Sequence[_MotorData], table: TelemetryTable, side: str, esc: EscMap) -> float | None:
+    """The ESCs' summed charge (as ``side``'s input current) over the battery monitor's, same bins."""
+    pairs = _battery_pairs(data, table, side, esc)
+    return None if pairs is None else float(np.sum(pairs[0]) / np.sum(pairs[1]))
+
+
 def gain_from_pairs(esc_sum_a: FloatArray, battery_a: FloatArray) -> tuple[float, float]:
-    """(gain, offset A) from :func:`battery_current_pairs`: the regression of the ESCs' sum on the
-    battery's current, or the ratio of the charges both counted where the regression is unphysical."""
-    e, b = esc_sum_a, battery_a
-    ratio = float(np.sum(e) / np.sum(b))  # of the charges both counted over the flight
-    if np.ptp(b) < 1.0:  # the battery current must move for gain and offset to part
-        return ratio, 0.0
-    slope, intercept = np.polyfit(b, e, 1)
-    offset = -intercept / slope if slope > 0 else -math.inf
-    if offset >= 0.0:
-        return float(slope), float(offset)
-    # The rest of the vehicle cannot draw a negative current: such a fit read the monitor's lag, not the
-    # sensor's gain. The monitor is a filtered current reported at 1-2 Hz in a .tlog, so each bin's pair
-    # is paired loosely and the slope reads that as a weaker dependence (development worlds 0-19: slopes
-    # -0.12 to 0.50 for true gains of 0.76-1.09, offsets -4.9 to -778 A; docs/model.md). A lag moves
-    # charge in time but not how much: the ratio of the charges, the rest of the vehicle's draw not told
-    # apart (the gain low by its share of the battery current, avionics ~0.5-1 A of 5-50 A).
-    return ratio, 0.0
+    """(gain, offset A) from :func:`battery_current_pairs`: the ratio of the charges both counted over
+    the flight, the rest of the vehicle's draw not told apart (offset 0: the gain comes out low by that
+    draw's share of the battery current, avionics ~0.5-1 A of 5-50 A).
+
+    Not the regression of the ESCs' sum on the battery's current: the monitor is a filtered current
+    reported at 1-2 Hz in a .tlog, so each bin's pair is paired loosely, and the slope reads the lag as
+    a weaker or stronger dependence (development worlds 0-19: slopes -0.12 to 0.50 for true gains of
+    0.76-1.09, offsets -4.9 to -778 A; the real PX4 quad read on the input side: slope 0.81 with 23.6 A
+    for the rest of a quad drawing 26-74 A; docs/model.md). A lag moves charge in time but not how much."""
+    return float(np.sum(esc_sum_a) / np.sum(battery_a)), 0.0
 
 
 def _lowpass(time_s: FloatArray, values: FloatArray, tau_s: float) -> FloatArray:
     return first_order_response(time_s, values, tau_s)[0]
 
 
+def _motor_current(m: _MotorData, esc: EscMap, side: str, gain: float) -> FloatArray | None:
+    """The motor current [A] the diagnosis will read from this motor's reading (the sensor's gain
+    removed; an input-side reading divided by the duty, as :func:`.vehicle.calibrate_columns` does),
+    gaps filled with the last reading; None without a usable reading."""
+    if side not in SIDE_ELASTICITY or not np.isfinite(m.current).any():
+        return None
+    true = m.current / gain
+    current = motor_current_a(true, esc.duty(m.command)) if side == "input" else true
+    have = np.isfinite(current)
+    if have.sum() < 20:
+        return None
+    last = np.maximum.accumulate(np.where(have, np.arange(current.size), 0))
+    filled = current[last]
+    return np.where(np.isfinite(filled), filled, current[have][0])
+
+
 def _mechanical_rows(
-    m: _MotorData, esc: EscMap, k_e: float, r_ohm: float, k: float, tau_s: float
+    m: _MotorData,
+    esc: EscMap,
+    k_e: float,
+    r_ohm: float,
+    k: float,
+    tau_s: float,
+    current_a: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
-    """Design matrix [ω̄^k, ω̄, 1, (ω − ω̄)/τ] and target k_t·mean(d·V − k_e·ω)/R, low-passed."""
+    """The mechanical balance k_t·i = C_p·ω^k + B·ω + T_f + J·dω/dt through a second-order state-variable
+    filter F (two first-order low-passes of ``tau_s``): design matrix [F(ω^k), F(ω), 1, d F(ω)/dt] and
+    target F(k_t·i), with i the motor current ``current_a`` where the ESC reports a usable one, else
+    (d·V − k_e·ω)/R from the voltage balance. The second stage keeps the speed's sample noise out of
+    the derivative (with one stage, d F(ω)/dt = (ω − F(ω))/τ carries it whole, and the inertia, a
+    regressor measured with noise, comes out low)."""
     t = m.time_s
-    torque = k_e * (esc.duty(m.command) * m.bus_v - k_e * m.omega) / r_ohm
-    y = _lowpass(t, torque, tau_s)
-    w_bar = _lowpass(t, m.omega, tau_s)
-    a = np.column_stack([_lowpass(t, m.omega**k, tau_s), w_bar, np.ones_like(t), (m.omega - w_bar) / tau_s])
-    settle = t - t[0] > 3 * tau_s
-    return a[settle], y[settle]
+    if current_a is not None:
+        torque = k_e * current_a
+    else:
+        torque = k_e * (esc.duty(m.command) * m.bus_v - k_e * m.omega) / r_ohm
+
+    def twice(x: FloatArray) -> FloatArray:
+        return _lowpass(t, _lowpass(t, x, tau_s), tau_s)
+
+    once = _lowpass(t, m.omega, tau_s)
+    w_bar = _lowpass(t, once, tau_s)
+    a = np.column_stack([twice(m.omega**k), w_bar, np.ones_like(t), (once - w_bar) / tau_s])
+    settle = t - t[0] > 6 * tau_s
+    return a[settle], twice(torque)[settle]
+
+
+def _scatter(rows: Sequence[tuple[FloatArray, FloatArray]]) -> float:
+    """The RMS residual of an unregularised fit (C_p, B, T_f, J ≥ 0) of the rows: their noise scale."""
+    a = np.vstack([r[0] for r in rows])
+    y = np.concatenate([r[1] for r in rows])
+    col = np.maximum(np.abs(a).max(axis=0), 1e-30)
+    fitted = lsq_linear(a / col, y, bounds=(0.0, np.inf), method="bvls")
+    return max(float(np.std(y - (a / col) @ fitted.x)), 1e-12)
 
 
 def _mechanical_fit(
@@ -462,10 +507,7 @@ def _mechanical_fit(
     """(C_p, B, T_f, J) ≥ 0 with a Gaussian prior, their standard errors, the data's SSE and count."""
     a = np.vstack([r[0] for r in rows])
     y = np.concatenate([r[1] for r in rows])
-    # noise scale from an unregularised fit, to weigh the prior against the data
-    col = np.maximum(np.abs(a).max(axis=0), 1e-30)
-    first = lsq_linear(a / col, y, bounds=(0.0, np.inf), method="bvls")
-    sigma = max(float(np.std(y - (a / col) @ first.x)), 1e-12)
+    sigma = _scatter(rows)  # noise scale from an unregularised fit, to weigh the prior against the data
     weak = np.isfinite(prior_sd)
     a_aug = np.vstack([a / sigma, np.diag(1.0 / np.where(weak, prior_sd, 1.0))[weak]])
     y_aug = np.concatenate([y / sigma, (prior / np.where(weak, prior_sd, 1.0))[weak]])
@@ -517,16 +559,28 @@ def identify(
         if side_test is not None and side_test.side in SIDE_ELASTICITY:
             side = side_test.side
         else:
-            # the side the balance fits the better: a guess, but the diagnosis's noise and each motor's
-            # offset are measured through it on this flight, and on held-out worlds the current read so
-            # still named the faults where setting it aside left the speed alone (docs/model.md)
-            side = min(fits, key=lambda s: fits[s][1])
             guessed = True
+            told = f" ({side_test.describe()})" if side_test is not None else ""
+            found = {s: _charge_ratio(data, table, s, EscMap(fits[s][0])) for s in fits}
+            charges = {s: r for s, r in found.items() if r is not None and r > 0}
+            if len(charges) == len(found):
+                # the side whose sensor gain the battery's charge makes nearer 1: read on the wrong side
+                # the sum comes out near duty x (input as motor) or 1/duty x (motor as input) the battery's
+                side = min(charges, key=lambda s: abs(math.log(charges[s])))
+                why = (
+                    f"the ESCs' summed charge is {charges['input']:.2f} x the battery monitor's read "
+                    f"as input current, {charges['motor']:.2f} x as motor current (x duty): the gain "
+                    f"nearer 1 chose"
+                )
+            else:
+                # no battery monitor to weigh the charges: the side the balance fits the better (on
+                # development worlds it often picks the motor side for an input-side reading)
+                side = min(fits, key=lambda s: fits[s][1])
+                why = "no battery monitor to compare the charges with: the balances' smaller residual chose"
             findings.append(
-                "the flight does not tell which side the ESCs read their current on"
-                + (f" ({side_test.describe()})" if side_test is not None else "")
-                + f": the current is taken as the {side} side's (the balances' smaller residual, which "
-                "often picks the wrong side); a flight with more of the battery's discharge would tell"
+                f"the flight does not tell which side the ESCs read their current on{told}: the "
+                f"current is taken as the {side} side's, a guess ({why}); a flight with more of the "
+                "battery's discharge would tell"
             )
         c0, _, c0_stderr = fits[side]
     else:
@@ -579,12 +633,39 @@ def identify(
     w_typ = float(np.median(np.concatenate([m.omega for m in data])))
     load = prior.C_p * w_typ**prior.k + prior.B * w_typ + prior.T_f
     candidates = (k,) if k is not None else K_CANDIDATES
+    # the torque from the motor current the ESC reports, where it does: the quantity the diagnosis
+    # compares with the model, read at the speed's own instant (the voltage balance's (d·V − k_e·ω)/R
+    # divides the commands' pairing error by R, which the balance often puts near its bound)
+    measured = {m.motor: _motor_current(m, esc, side, gain) if usable.get(m.motor) else None for m in data}
+
+    def routes(kk: float) -> list[list[tuple[FloatArray, FloatArray]]]:
+        """The mechanical balance's rows with the torque from the voltage balance (every motor) and
+        from the reported current (the motors that report one)."""
+        e = per_motor_e
+        voltage = [
+            _mechanical_rows(m, esc, e[m.motor][0], motors_r[m.motor], kk, MECHANICAL_TAU_S) for m in data
+        ]
+        current = [
+            _mechanical_rows(
+                m, esc, e[m.motor][0], motors_r[m.motor], kk, MECHANICAL_TAU_S, measured[m.motor]
+            )
+            for m in data
+            if measured[m.motor] is not None
+        ]
+        kept = ([r for r in route if r[1].size] for route in (voltage, current))
+        return [route for route in kept if route]
+
+    if not routes(3.0):
+        raise FitError(
+            f"no motor turned for longer than the mechanical balance's filter needs to settle "
+            f"({6 * MECHANICAL_TAU_S:g} s); expected a flight of tens of seconds"
+        )
     results = {}
     for kk in candidates:
-        rows = [
-            _mechanical_rows(m, esc, per_motor_e[m.motor][0], motors_r[m.motor], kk, MECHANICAL_TAU_S)
-            for m in data
-        ]
+        # both routes fitted together, each in units of its own scatter: where R came out near its
+        # bound the voltage route's torque is the commands' pairing error over R and counts for little;
+        # where the reading is averaged or lags, the current route's inertia term does
+        rows = [(a / sd, y / sd) for route in routes(kk) for sd in [_scatter(route)] for a, y in route]
         # B·ω and T_f are small shares of a propeller's load: a weak prior of 0 ± PRIOR_SHARE of it
         prior_x = np.zeros(4)
         prior_sd = np.array([np.inf, PRIOR_SHARE * load / w_typ, PRIOR_SHARE * load, np.inf])
@@ -606,8 +687,10 @@ def identify(
         chosen = choose_exponent(k_bic)
     x, err, _ = results[chosen]
     for m in data:  # each motor's mechanical balance residual under the shared fit: its noise floor
-        a, y = _mechanical_rows(m, esc, per_motor_e[m.motor][0], motors_r[m.motor], chosen, MECHANICAL_TAU_S)
-        noise[m.motor]["torque_nm"] = _rms(y - a @ x)
+        a, y = _mechanical_rows(
+            m, esc, per_motor_e[m.motor][0], motors_r[m.motor], chosen, MECHANICAL_TAU_S, measured[m.motor]
+        )
+        noise[m.motor]["torque_nm"] = _rms(y - a @ x)  # on the reported current where there is one
     c_p, b, t_f, inertia = (float(v) for v in x)
     determined = {
         "idle_offset": offset_from,
