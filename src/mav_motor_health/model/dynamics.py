@@ -123,12 +123,23 @@ def first_order_responses(
     if groups * times != rows or tau.shape[0] not in (1, times, rows):
         raise ValueError(f"{rows} targets for {times} rows of times and {tau.shape[0]} of time constants")
     tau3 = tau.reshape(groups if tau.shape[0] == rows and rows > times else 1, -1, n)
-    carry_t = np.array([c.time_s for c in carries]).reshape(groups, times)
-    carry_x = np.array([c.input for c in carries])
-    carry_y = np.array([c.output for c in carries])
+    carried = np.array([(c.time_s, c.input, c.output) for c in carries]).reshape(rows, 3)
+    carry_t = carried[:, 0].reshape(groups, times)
+    carry_x, carry_y = carried[:, 1], carried[:, 2]
     # The decay of each interval, Δt/τ: the first from each row's carried time
-    first_decay = _decay(np.clip(t[:, 0] - carry_t, 0.0, None), tau3[:, :, 0])
-    decay = _decay(np.clip(t[:, 1:] - t[:, :-1], 0.0, None), tau3[:, :, 1:])
+    gaps = np.empty(t.shape)
+    gaps[:, 0] = 0.0  # (replaced below by the carried time's)
+    np.subtract(t[:, 1:], t[:, :-1], out=gaps[:, 1:])
+    with np.errstate(invalid="ignore"):
+        np.maximum(gaps, 0.0, out=gaps)  # (NaN stays NaN, as np.clip leaves it)
+        first_gap = np.maximum(t[:, 0] - carry_t, 0.0)
+    if _lagging(tau3):
+        decay_all = gaps / tau3
+        first_decay = first_gap / tau3[:, :, 0]
+        decay = decay_all[..., 1:]
+    else:
+        first_decay = _decay(first_gap, tau3[:, :, 0])
+        decay = _decay(gaps[:, 1:], tau3[:, :, 1:])
     if times == 1:
         out = _responses_one_time_row(
             x, carries, carry_x, carry_y, first_decay.reshape(rows), decay.reshape(-1, n - 1)
@@ -252,17 +263,30 @@ def _carries_at_last(
 ) -> list[ResponseCarry]:
     """Each row's carry at its last sample (a row without samples keeps its own)."""
     rows, times = len(carries), t.shape[0]
-    at = np.maximum(np.asarray(counts) - 1, 0)
-    index = np.arange(rows)
-    last_times = t[index % times, at].tolist()
-    inputs = x[index, at].tolist()
-    outputs = out[index, at].tolist()
+    n = t.shape[1]
+    if all(count == n for count in counts):  # every row full: its last column
+        last_times = np.tile(t[:, -1], rows // times).tolist()
+        inputs, outputs = x[:, -1].tolist(), out[:, -1].tolist()
+        if all(map(math.isfinite, inputs)):
+            return [ResponseCarry(*last) for last in zip(last_times, inputs, outputs)]
+    else:
+        at = np.maximum(np.asarray(counts) - 1, 0)
+        index = np.arange(rows)
+        last_times = t[index % times, at].tolist()
+        inputs = x[index, at].tolist()
+        outputs = out[index, at].tolist()
     return [
         carry
         if count == 0
         else ResponseCarry(time_s=time, input=value if math.isfinite(value) else carry.input, output=output)
         for carry, count, time, value, output in zip(carries, counts, last_times, inputs, outputs)
     ]
+
+
+def _lagging(tau: FloatArray) -> bool:
+    """Whether every time constant is finite and positive (so that every decay is Δt/τ)."""
+    with np.errstate(invalid="ignore"):
+        return bool((tau > 0).all() and np.isfinite(tau).all())
 
 
 def _decay(dt: FloatArray, tau: FloatArray) -> FloatArray:
