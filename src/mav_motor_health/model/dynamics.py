@@ -310,9 +310,14 @@ def previous(values: ArrayLike, carried: ArrayLike) -> FloatArray:
 def last_of(values: NDArray, lengths: Sequence[int] | NDArray[np.integer]) -> list:
     """Each row's value at its last sample (rows of ``lengths`` samples, then padding), as Python values;
     None for a row without samples."""
+    values = np.asarray(values)
+    n = values.shape[-1]
+    if all(count == n for count in lengths) and n > 0:  # every row full: its last column
+        last: list = values[:, -1].tolist()
+        return last
     rows = np.arange(len(lengths))
     at = np.maximum(np.asarray(lengths, dtype=np.int64) - 1, 0)
-    picked = np.asarray(values)[rows, at].tolist()
+    picked = values[rows, at].tolist()
     return [value if count > 0 else None for value, count in zip(picked, lengths)]
 
 
@@ -438,21 +443,26 @@ def _responses_scalar(
         row_t = times[r % len(times)][:count]  # the rows' times and time constants repeat (see above)
         row_tau = taus[r % len(taus)][:count]
         values = out[r]
-        for k, (tk, xk, tau_k) in enumerate(zip(row_t, row[:count], row_tau)):
+        # each interval's decay (the times' alone: the previous time is the previous sample's, whatever
+        # its input), all exponentials in one numpy call: numpy's exp, as the vectorised path's (libm's
+        # differs from numpy's SIMD exp in the last bit for some arguments on some processors, AVX-512,
+        # and the paths must agree)
+        decays = []
+        for tk, tau_k in zip(row_t, row_tau):
             dt = max(tk - prev_t, 0.0) if math.isfinite(tk - prev_t) else math.inf
-            decay = dt / tau_k if math.isfinite(tau_k) and tau_k > 0 else math.inf
+            decays.append(dt / tau_k if math.isfinite(tau_k) and tau_k > 0 else math.inf)
+            prev_t = tk
+        factors = np.exp(np.negative(decays)).tolist()
+        for k, (xk, decay, a) in enumerate(zip(row[:count], decays, factors)):
             if not math.isfinite(xk):
                 pass  # a missing input: the output holds
             elif not math.isfinite(decay) or decay >= _RESTART_DECAY or not math.isfinite(y):
                 y = xk  # no lag (or no past): the target itself
             else:
                 mean_in = 0.5 * (prev_x + xk) if math.isfinite(prev_x) else xk
-                # numpy's exp, as the vectorised path's: libm's differs from numpy's SIMD exp in the
-                # last bit for some arguments on some processors (AVX-512), and the paths must agree
-                a = float(np.exp(-decay))
                 y = a * y + (1.0 - a) * mean_in
             values[k] = y
-            prev_t, prev_x = tk, xk
+            prev_x = xk
         last = row[count - 1]
         news.append(
             ResponseCarry(
