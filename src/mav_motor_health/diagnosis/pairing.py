@@ -52,6 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._arrays import nan_to_zero
 from ..model.balance import linearised_slopes
 from ..model.dynamics import ResponseCarry, first_order_responses, last_of, previous
 from ..model.params import MotorParams
@@ -100,7 +101,7 @@ def loosest_pairing(
     ``share`` of them do not exceed. And what to carry: the times and pairings of the samples within
     ``window_s`` of the last one. Split anywhere, the parts give the whole's values."""
     t = np.concatenate((carried_time_s, time_s))
-    u = np.concatenate((carried_pairing_s, np.nan_to_num(pairing_s, nan=0.0)))
+    u = np.concatenate((carried_pairing_s, nan_to_zero(pairing_s)))
     n, k = t.size, carried_time_s.size
     if n == 0:
         return np.zeros(0), carried_time_s, carried_pairing_s
@@ -258,7 +259,7 @@ def _loosest_pairing_rows(
         pieces_t += [r_t, row_t[:count]]
         pieces_u += [r_u, row_u[:count]]
     flat_t = np.concatenate(pieces_t)
-    flat_u = np.nan_to_num(np.concatenate(pieces_u), nan=0.0)
+    flat_u = nan_to_zero(np.concatenate(pieces_u))
     # row r's values at [r, :lengths[r]], padding after them (+inf times: never in a window)
     offsets = np.cumsum([0, *lengths[:-1]])
     index = np.arange(flat_t.size) + np.repeat(np.arange(rows) * width - offsets, lengths)
@@ -354,8 +355,8 @@ def pairing_error_rows(
     recent = [(c.recent_time_s, c.recent_pairing_s) for c in carries]
     if per_sample:
         u_rows = np.broadcast_to(np.asarray(pairing_s, dtype=float), t.shape)
-        together = _loosest_pairing_rows(t, u_rows, counts, recent)
-        if together is not None:  # every row's few samples at once (the live agent's call)
+        together = _loosest_pairing_rows(t, u_rows, counts, recent) if rows > 1 else None
+        if together is not None:  # every motor's few samples at once (the live agent's call)
             loosest, recent = together
         else:
             for r, count in enumerate(counts):
@@ -380,5 +381,5 @@ def pairing_error_rows(
         )
     ]
     scale = loosest if per_sample else float(np.asarray(pairing_s))
-    error = params.k_t * np.nan_to_num(mean_rate) * scale / d
+    error = params.k_t * nan_to_zero(mean_rate) * scale / d
     return error, news
