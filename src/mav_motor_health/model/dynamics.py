@@ -130,9 +130,8 @@ def first_order_responses(
     gaps = np.empty(t.shape)
     gaps[:, 0] = 0.0  # (replaced below by the carried time's)
     np.subtract(t[:, 1:], t[:, :-1], out=gaps[:, 1:])
-    with np.errstate(invalid="ignore"):
-        np.maximum(gaps, 0.0, out=gaps)  # (NaN stays NaN, as np.clip leaves it)
-        first_gap = np.maximum(t[:, 0] - carry_t, 0.0)
+    np.clip(gaps, 0.0, None, out=gaps)
+    first_gap = np.clip(t[:, 0] - carry_t, 0.0, None)
     if _lagging(tau3):
         decay_all = gaps / tau3
         first_decay = first_gap / tau3[:, :, 0]
