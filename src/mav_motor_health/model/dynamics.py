@@ -266,18 +266,16 @@ def _carries_at_last(
     if all(count == n for count in counts):  # every row full: its last column
         last_times = np.tile(t[:, -1], rows // times).tolist()
         inputs, outputs = x[:, -1].tolist(), out[:, -1].tolist()
-        if all(map(math.isfinite, inputs)):
-            return [ResponseCarry(*last) for last in zip(last_times, inputs, outputs)]
     else:
         at = np.maximum(np.asarray(counts) - 1, 0)
         index = np.arange(rows)
         last_times = t[index % times, at].tolist()
         inputs = x[index, at].tolist()
         outputs = out[index, at].tolist()
+    if all(map(math.isfinite, inputs)) and all(counts):  # (the common case: each row's own last values)
+        return list(map(ResponseCarry, last_times, inputs, outputs))
     return [
-        carry
-        if count == 0
-        else ResponseCarry(time_s=time, input=value if math.isfinite(value) else carry.input, output=output)
+        carry if count == 0 else ResponseCarry(time, value if math.isfinite(value) else carry.input, output)
         for carry, count, time, value, output in zip(carries, counts, last_times, inputs, outputs)
     ]
 
