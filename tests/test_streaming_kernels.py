@@ -11,6 +11,12 @@ import math
 import numpy as np
 import pytest
 
+from mav_motor_health.diagnosis.pairing import (
+    PairingCarry,
+    _loosest_pairing_rows,
+    loosest_pairing,
+    pairing_error_rows,
+)
 from mav_motor_health.diagnosis.persistence import PersistenceCarry, announce
 from mav_motor_health.diagnosis.profile import PersistenceRule
 from mav_motor_health.model.dynamics import (
@@ -19,6 +25,7 @@ from mav_motor_health.model.dynamics import (
     first_order_response,
     first_order_responses,
 )
+from mav_motor_health.model.params import MotorParams
 
 RESTART_DECAY = 600.0
 
@@ -218,6 +225,88 @@ def test_stacked_rows_give_what_one_call_per_row_gives() -> None:
             alone, alone_carry = first_order_response(t[sl], rows[r, sl], tau[sl], carry)
             np.testing.assert_array_equal(together[r], alone)
             assert new[r] == alone_carry
+
+
+def test_rows_of_motors_with_their_own_times_give_what_one_call_per_row_gives() -> None:
+    """Several motors' rows (each its own times, full or ragged), several quantities each, time constants
+    per sample, some not finite: one call gives each row's own call."""
+    rng = np.random.default_rng(11)
+    motors, n, quantities = 4, 7, 3
+    t = 5.0 + np.cumsum(rng.uniform(0.0, 0.03, (motors, n)), axis=1)
+    x = rng.normal(size=(quantities * motors, n))
+    x[rng.random(x.shape) < 0.1] = np.nan
+    carries = [
+        ResponseCarry(4.99, 0.5, 0.25) if r % 3 else ResponseCarry() for r in range(quantities * motors)
+    ]
+    for tau in (
+        rng.uniform(0.05, 0.4, (motors, n)),
+        np.where(rng.random((motors, n)) < 0.2, np.nan, 0.2),
+        np.full((motors, n), 0.1),
+    ):
+        for counts in ([n] * motors, [n, 3, 0, 5]):
+            together, new = first_order_responses(t, x, tau, carries, counts * quantities)
+            for r, carry in enumerate(carries):
+                m, count = r % motors, counts[r % motors]
+                alone, alone_carry = first_order_response(t[m, :count], x[r, :count], tau[m, :count], carry)
+                np.testing.assert_array_equal(together[r, :count], alone)
+                assert new[r] == alone_carry or (count == 0 and new[r] is carry)
+
+
+# -- pairing ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", range(6))
+def test_loosest_pairing_of_several_motors_at_once_is_each_motors_own(seed: int) -> None:
+    """The live agent's call (every motor's few samples at once, :func:`_loosest_pairing_rows`) against
+    :func:`loosest_pairing` one motor at a time, over streams split into random calls: the same pairings
+    and carries; and the pairing errors of all motors in one call are each motor's own."""
+    rng = np.random.default_rng(seed)
+    motors, n = 5, 600
+    t = np.cumsum(rng.choice([0.005, 0.01, 0.02, 0.03], (motors, n)), axis=1)
+    u = rng.choice([0.0, 0.01, 0.02, 0.05, np.nan], (motors, n), p=[0.3, 0.3, 0.2, 0.1, 0.1])
+    if seed % 2:
+        u[1] = 0.02  # one motor's stream paired alike throughout
+    v = rng.uniform(3.0, 9.0, (motors, n))
+    omega = rng.uniform(300.0, 900.0, (motors, n))
+    tau = np.full((motors, n), 0.2)
+    params = MotorParams(R_ohm=0.165, k_e=0.00975, C_p=1.692e-10, B=1.275e-07, T_f=4.606e-10, k=3.0)
+    together = [PairingCarry() for _ in range(motors)]
+    alone = [PairingCarry() for _ in range(motors)]
+    done = np.zeros(motors, dtype=int)
+    while (done < n).any():
+        counts = [int(min(n - d, k)) for d, k in zip(done, rng.integers(0, 12, motors))]
+        width = max(*counts, 1)
+
+        def rows(x: np.ndarray, counts: list[int] = counts, width: int = width) -> np.ndarray:
+            out = np.zeros((motors, width))
+            for m, (d, c) in enumerate(zip(done.tolist(), counts)):  # noqa: B023 (called at once)
+                out[m, :c] = x[m, d : d + c]
+                out[m, c:] = x[m, d + c - 1] if c else 0.0
+            return out
+
+        recent = [(c.recent_time_s, c.recent_pairing_s) for c in together]
+        picked = _loosest_pairing_rows(rows(t), rows(u), counts, recent)
+        if picked is None:  # no samples in this call
+            assert sum(counts) == 0
+            continue
+        error, together = pairing_error_rows(
+            params, rows(t), rows(v), rows(omega), rows(u), rows(tau), together, counts
+        )
+        for m, (d, c) in enumerate(zip(done, counts)):
+            sl = slice(d, d + c)
+            if c:
+                want, *_ = loosest_pairing(
+                    t[m, sl], u[m, sl], alone[m].recent_time_s, alone[m].recent_pairing_s
+                )
+                np.testing.assert_array_equal(picked[0][m, :c], want)
+                one_error, (alone[m],) = pairing_error_rows(
+                    params,
+                    *(x[m : m + 1, sl] for x in (t, v, omega, u, tau)),
+                    [alone[m]],
+                )
+                np.testing.assert_array_equal(error[m, :c], one_error[0])
+            np.testing.assert_array_equal(picked[1][m][0], alone[m].recent_time_s)
+            np.testing.assert_array_equal(picked[1][m][1], alone[m].recent_pairing_s)
+            np.testing.assert_array_equal(together[m].recent_pairing_s, alone[m].recent_pairing_s)
+        done += counts
 
 
 # -- persistence ----------------------------------------------------------------------------------------

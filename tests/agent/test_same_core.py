@@ -82,6 +82,26 @@ def test_streamed_log_announces_what_batch_diagnosis_announces(flight, paper_mot
     assert summed.any() and batch["time_s"][summed].min() > BATTERY_MISSCALED_FROM_S
 
 
+def test_without_a_row_callback_the_agent_publishes_the_same(flight):
+    """Without ``on_row`` (the product) the monitor makes no row per sample, only each motor's last one and
+    each change's evidence (issue 18): the same changes, evidence and last rows as with every row made."""
+    _, path = flight
+    rows, with_rows = stream_through_agent(path, "flight")
+    config = load_agent_config(None, connect=str(path), profile="flight")
+
+    async def main() -> Agent:
+        async with Agent(config) as agent:
+            await asyncio.wait_for(agent.wait(), timeout=60)
+        return agent
+
+    bare = asyncio.run(main())
+    assert rows and len(with_rows.changes) > 6
+    assert repr(bare.changes) == repr(with_rows.changes)  # NaN evidence: compared as text
+    assert repr({n: s.row for n, s in bare.monitor.status.items()}) == repr(
+        {n: s.row for n, s in with_rows.monitor.status.items()}
+    )
+
+
 def test_the_replay_reader_and_the_agent_see_the_same_samples(flight):
     """The project's .tlog reader (replay) and the agent's live path extract the same samples from a log:
     times, motors (SERVOn_FUNCTION mapping), speeds, ESC and motor currents, commands and bus voltages."""

@@ -251,7 +251,7 @@ class Agent:
             if len(pending) == 1
             else {name: np.concatenate([part[name] for part in pending]) for name in pending[0]}
         )
-        rows, changes = self.monitor.feed_columns(samples)
+        rows, changes = self.monitor.feed_columns(samples, rows=self.on_row is not None)
         if self.on_row is not None:
             for row in rows:
                 self.on_row(row)

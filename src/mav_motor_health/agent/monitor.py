@@ -118,12 +118,14 @@ class HealthMonitor:
         )
 
     def feed_columns(
-        self, columns: Mapping[str, ArrayLike]
+        self, columns: Mapping[str, ArrayLike], rows: bool = True
     ) -> tuple[list[dict[str, Any]], list[StateChange]]:
         """Diagnose samples given as table columns (``time_s``, ``motor``, ... as
         :class:`~.samples.SampleAssembler` gives them; rows in time order) in one core call for all
         motors: same results as one by one (the core carries each motor's state), a fraction of the
-        overhead. Returns rows and changes."""
+        overhead. Returns rows and changes; with ``rows`` False no rows (each motor's last one is still
+        its :attr:`MotorStatus.row`, and each change's evidence its sample's): a dict per sample costs
+        more than a few samples' share of the core call."""
         motor = np.asarray(columns["motor"], dtype=np.int64)
         if motor.size == 0:
             return [], []
@@ -186,29 +188,35 @@ class HealthMonitor:
             fit[:] = verdict[index]
         if verdict.size:
             self.vehicle_fit = int(verdict[-1])
-        rows: list[dict[str, Any]] = []
+        all_rows: list[dict[str, Any]] = []
         changes: list[StateChange] = []
         for number, index in groups.items():
             status = self.status[number]
             sample = {name: cols[name][index].tolist() for name in _ROW_COLUMNS}  # Python values
             diagnosed = {name: values.tolist() for name, values in results[number].items()}
-            for k, time_s in enumerate(sample["time_s"]):
-                row: dict[str, Any] = {
-                    "time_s": time_s,
+
+            def row_at(k: int, number: int = number, sample=sample, diagnosed=diagnosed) -> dict[str, Any]:
+                return {
+                    "time_s": sample["time_s"][k],
                     "motor": number,
                     **{name: sample[name][k] for name in _ROW_COLUMNS[1:]},
                     **{name: values[k] for name, values in diagnosed.items()},
                 }
-                rows.append(row)
-                status.row = row
-                status.last_sample_s = time_s
-                if row["announced"] != status.state:
-                    change = self._publish(status, MotorState(row["announced"]), time_s, row)
+
+            times = sample["time_s"]
+            made = [row_at(k) for k in range(len(times))] if rows else None
+            all_rows += made or []
+            for k, state in enumerate(diagnosed["announced"]):
+                if state != status.state:
+                    row = made[k] if made is not None else row_at(k)
+                    change = self._publish(status, MotorState(state), times[k], row)
                     if change is not None:
                         changes.append(change)
+            status.row = made[-1] if made is not None else row_at(len(times) - 1)
+            status.last_sample_s = times[-1]
             self.samples += index.size
         changes.sort(key=lambda c: c.time_s)
-        return rows, changes
+        return all_rows, changes
 
     def check_silence(self, now_s: float) -> list[StateChange]:
         """Motors silent for longer than ``stale_s`` become ``NO_DATA``; returns those changes."""

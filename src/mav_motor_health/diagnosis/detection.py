@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtr
 
+from .._arrays import nan_to_zero
 from ..errors import ConfigError
 from .states import MotorState
 
@@ -175,8 +176,8 @@ def direction_evidence(
     SLOW and FAST have evidence, from ``z_omega_alone`` (the speed deviation in units of the speed-only
     band's σ: without the current a model error cannot be told from a fault, and the tree asks for the
     wider band there too; None: ``z_omega``); with one, only the four others."""
-    zw = np.nan_to_num(z_omega)
-    zi = np.where(current_trusted, np.nan_to_num(z_current), 0.0)
+    zw = nan_to_zero(z_omega)
+    zi = np.where(current_trusted, nan_to_zero(z_current), 0.0)
     n = bands_sigmas
     not_high = zw <= n
     out = np.zeros((len(DIRECTIONS), *zw.shape))
@@ -185,7 +186,7 @@ def direction_evidence(
     out[2] = np.maximum(np.minimum(zw, -zi), 0.0)  # F3.1: faster with less current
     out[3] = np.where(zi >= -n, np.maximum(zw, 0.0), 0.0)  # UNKNOWN: faster, current not below
     out[:4] = np.where(current_trusted, out[:4], 0.0)
-    alone = zw if z_omega_alone is None else np.nan_to_num(z_omega_alone)
+    alone = zw if z_omega_alone is None else nan_to_zero(z_omega_alone)
     out[4] = np.where(current_trusted, 0.0, np.maximum(-alone, 0.0))  # SLOW (speed only)
     out[5] = np.where(current_trusted, 0.0, np.maximum(alone, 0.0))  # FAST (speed only)
     return out

@@ -53,6 +53,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import nnls
 
+from .._arrays import nan_to_zero
 from ..errors import ConfigError
 from ..telemetry.table import TelemetryTable
 from .plausibility import CURRENT_UNTRUSTED
@@ -133,11 +134,11 @@ class BandNoise:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """σ of the speed [rad/s] and current [A] deviations at each input activity [V] (and pairing error
         [rad/s], where given)."""
-        a = np.nan_to_num(np.asarray(activity_v, dtype=float))
+        a = nan_to_zero(np.asarray(activity_v, dtype=float))
         speed = np.hypot(self.speed_rad_s, self.speed_rad_s_per_v * a)
         current = np.hypot(self.current_a, self.current_a_per_v * a)
         if pairing_error_rad_s is not None and (self.speed_per_pairing > 0 or self.current_a_per_pairing > 0):
-            e = np.nan_to_num(np.asarray(pairing_error_rad_s, dtype=float))
+            e = nan_to_zero(np.asarray(pairing_error_rad_s, dtype=float))
             speed = np.hypot(speed, self.speed_per_pairing * e)
             current = np.hypot(current, self.current_a_per_pairing * e)
         if not math.isfinite(self.current_a):
@@ -209,11 +210,11 @@ class BandNoise:
             )
         if activity_v is not None and math.isfinite(self.activity_high_v):
             inside &= (
-                np.nan_to_num(np.asarray(activity_v, dtype=float)) <= (1.0 + margin) * self.activity_high_v
+                nan_to_zero(np.asarray(activity_v, dtype=float)) <= (1.0 + margin) * self.activity_high_v
             )
         if pairing_error_rad_s is not None and math.isfinite(self.pairing_error_high_rad_s):
             inside &= (
-                np.nan_to_num(np.asarray(pairing_error_rad_s, dtype=float))
+                nan_to_zero(np.asarray(pairing_error_rad_s, dtype=float))
                 <= (1.0 + margin) * self.pairing_error_high_rad_s
             )
         return inside

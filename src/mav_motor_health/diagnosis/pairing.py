@@ -52,8 +52,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._arrays import nan_to_zero
 from ..model.balance import linearised_slopes
-from ..model.dynamics import ResponseCarry, first_order_responses, previous
+from ..model.dynamics import ResponseCarry, first_order_responses, last_of, previous
 from ..model.params import MotorParams
 
 __all__ = [
@@ -100,7 +101,7 @@ def loosest_pairing(
     ``share`` of them do not exceed. And what to carry: the times and pairings of the samples within
     ``window_s`` of the last one. Split anywhere, the parts give the whole's values."""
     t = np.concatenate((carried_time_s, time_s))
-    u = np.concatenate((carried_pairing_s, np.nan_to_num(pairing_s, nan=0.0)))
+    u = np.concatenate((carried_pairing_s, nan_to_zero(pairing_s)))
     n, k = t.size, carried_time_s.size
     if n == 0:
         return np.zeros(0), carried_time_s, carried_pairing_s
@@ -228,6 +229,79 @@ def _block_tops(
     return before.reshape(keep, -1), upto.reshape(keep, -1)
 
 
+#: at most this many values in :func:`_loosest_pairing_rows`' layout of every query's window (beyond: row by
+#: row, through :func:`loosest_pairing`)
+_ROWS_MAX_VALUES = 1 << 18
+
+
+def _loosest_pairing_rows(
+    time_s: NDArray[np.float64],
+    pairing_s: NDArray[np.float64],
+    counts: list[int],
+    recent: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
+    window_s: float = PAIRING_WINDOW_S,
+    share: float = PAIRING_SHARE,
+) -> tuple[NDArray[np.float64], list[tuple[NDArray[np.float64], NDArray[np.float64]]]] | None:
+    """:func:`loosest_pairing` of several rows at once (rows of ``counts`` samples, then padding; each
+    row's carried times and pairings in ``recent``): each query's window picked from its row laid out
+    whole, as :func:`_ranked_direct` picks it. The same numbers as row by row; None where it does not
+    apply (many samples, times not finite or not increasing), which the caller then does row by row."""
+    rows = len(counts)
+    carried = [r_t.size for r_t, _ in recent]
+    lengths = [k + c for k, c in zip(carried, counts)]
+    width = max(lengths)
+    queries = sum(counts)
+    if queries == 0 or max(counts) > _DIRECT_MAX or queries * width > _ROWS_MAX_VALUES:
+        return None
+    pieces_t: list[NDArray[np.float64]] = []
+    pieces_u: list[NDArray[np.float64]] = []
+    for (r_t, r_u), row_t, row_u, count in zip(recent, time_s, pairing_s, counts):
+        pieces_t += [r_t, row_t[:count]]
+        pieces_u += [r_u, row_u[:count]]
+    flat_t = np.concatenate(pieces_t)
+    flat_u = nan_to_zero(np.concatenate(pieces_u))
+    # row r's values at [r, :lengths[r]], padding after them (+inf times: never in a window)
+    offsets = np.cumsum([0, *lengths[:-1]])
+    index = np.arange(flat_t.size) + np.repeat(np.arange(rows) * width - offsets, lengths)
+    t = np.full((rows, width), np.inf)
+    u = np.zeros((rows, width))
+    t.ravel()[index] = flat_t
+    u.ravel()[index] = flat_u
+    if not (np.isfinite(flat_t).all() and (t[:, 1:] >= t[:, :-1]).all()):
+        return None
+    # the queries: each row's new samples, after its carried ones
+    query_row = np.repeat(np.arange(rows), counts)
+    at = np.arange(queries) - np.repeat(np.cumsum([0, *counts[:-1]]) - carried, counts)
+    # the window's first sample: the first not before t − window_s (np.searchsorted's side="left")
+    start = np.minimum((t[query_row] < (t[query_row, at] - window_s)[:, None]).sum(axis=1), at)
+    length = at - start + 1
+    # the rank from the top: 0 the largest; ceil(share·n) of n at or below the value
+    rank = length - np.ceil(share * length - 1e-9).astype(np.int64)
+    column = np.arange(width)
+    inside = (column >= start[:, None]) & (column <= at[:, None])
+    negated = np.where(inside, -u[query_row], np.inf)
+    deepest = int(rank.max())
+    if deepest + 1 < width:  # the deepest+1 largest first (in any order), then sorted
+        negated = np.partition(negated, deepest, axis=1)[:, : deepest + 1]
+    out = -np.sort(negated, axis=1)[np.arange(queries), rank]
+    # a row with one pairing for all (a steady stream): that one
+    valid = column < np.asarray(lengths)[:, None]
+    same = ((u == u[:, :1]) | ~valid).all(axis=1)
+    if same.any():
+        out = np.where(same[query_row], u[query_row, 0], out)
+    loosest = np.zeros(time_s.shape)
+    loosest[query_row, np.arange(queries) - np.repeat(np.cumsum([0, *counts[:-1]]), counts)] = out
+    news = []
+    for r, (length_r, count) in enumerate(zip(lengths, counts)):
+        if count == 0:
+            news.append(recent[r])
+            continue
+        row_t = t[r, :length_r]
+        first = int(np.searchsorted(row_t, row_t[-1] - window_s, side="left"))
+        news.append((row_t[first:].copy(), u[r, first:length_r].copy()))
+    return loosest, news
+
+
 def pairing_error_rad_s(
     params: MotorParams,
     time_s: ArrayLike,
@@ -278,23 +352,34 @@ def pairing_error_rows(
     _, d = linearised_slopes(params, omega_model_rad_s)
     per_sample = np.ndim(pairing_s) > 0
     loosest = np.zeros(t.shape)  # per sample: each one's loosest pairing of the window
-    news = []
-    for r, (carry, count) in enumerate(zip(carries, counts)):
-        recent_t, recent_u = carry.recent_time_s, carry.recent_pairing_s
-        if per_sample and count:
-            u_row = np.broadcast_to(np.asarray(pairing_s, dtype=float), t.shape)[r, :count]
-            loosest[r, :count], recent_t, recent_u = loosest_pairing(t[r, :count], u_row, recent_t, recent_u)
-        # the previous sample is the last one, whatever it holds (as within a call: a split of the
-        # samples into calls gives what the whole gives)
-        news.append(
-            PairingCarry(
-                time_s=float(t[r, count - 1]) if count else carry.time_s,
-                voltage_v=float(v[r, count - 1]) if count else carry.voltage_v,
-                rate=rate_carries[r],
-                recent_time_s=recent_t,
-                recent_pairing_s=recent_u,
-            )
+    recent = [(c.recent_time_s, c.recent_pairing_s) for c in carries]
+    if per_sample:
+        u_rows = np.broadcast_to(np.asarray(pairing_s, dtype=float), t.shape)
+        together = _loosest_pairing_rows(t, u_rows, counts, recent) if rows > 1 else None
+        if together is not None:  # every motor's few samples at once (the live agent's call)
+            loosest, recent = together
+        else:
+            for r, count in enumerate(counts):
+                if count:
+                    loosest[r, :count], recent_t, recent_u = loosest_pairing(
+                        t[r, :count], u_rows[r, :count], *recent[r]
+                    )
+                    recent[r] = (recent_t, recent_u)
+    # the previous sample is the last one, whatever it holds (as within a call: a split of the samples
+    # into calls gives what the whole gives)
+    last_t, last_v = last_of(t, counts), last_of(v, counts)
+    news = [
+        PairingCarry(
+            time_s=carry.time_s if time is None else time,
+            voltage_v=carry.voltage_v if volts is None else volts,
+            rate=rate_carry,
+            recent_time_s=recent_t,
+            recent_pairing_s=recent_u,
         )
+        for carry, time, volts, rate_carry, (recent_t, recent_u) in zip(
+            carries, last_t, last_v, rate_carries, recent
+        )
+    ]
     scale = loosest if per_sample else float(np.asarray(pairing_s))
-    error = params.k_t * np.nan_to_num(mean_rate) * scale / d
+    error = params.k_t * nan_to_zero(mean_rate) * scale / d
     return error, news

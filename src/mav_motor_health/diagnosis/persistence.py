@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .._arrays import nan_to_zero
 from .states import MotorState
 
 __all__ = ["PersistenceCarry", "announce", "run_hold"]
@@ -94,7 +95,7 @@ def announce(
         since = run_since[run_of]
         reached = te >= since + hold[run_of]  # a fixed hold in time: the first sample at or after it
         if slope is not None:
-            extra = slope[run_of] * np.nan_to_num(np.asarray(activity, dtype=float)[idx])
+            extra = slope[run_of] * nan_to_zero(np.asarray(activity, dtype=float)[idx])
             by_activity = (slope != 0)[run_of]
             reached = np.where(by_activity, te - since >= hold[run_of] + extra, reached)
         first_reached = _first_true_per_run(reached, starts, ends)
@@ -108,7 +109,7 @@ def announce(
         weighted = np.asarray(rate, dtype=float)[idx] * steps
         need = hold[run_of]
         if slope is not None:
-            need = need + slope[run_of] * np.nan_to_num(np.asarray(activity, dtype=float)[idx])
+            need = need + slope[run_of] * nan_to_zero(np.asarray(activity, dtype=float)[idx])
         candidates = _runs_near_hold(weighted, need, starts, ends, held_carried)
         first_reached = np.full(starts.size, -1, dtype=np.int64)
         for r in candidates.tolist():
@@ -194,7 +195,7 @@ def _announce_scalar(
                     reached = tk >= since + hold
                 else:
                     if slope and not acts:
-                        acts = np.nan_to_num(np.asarray(activity, dtype=float)).tolist()
+                        acts = nan_to_zero(np.asarray(activity, dtype=float)).tolist()
                     reached = held >= (hold + slope * acts[k] if slope else hold)
                 if reached:
                     announced = sk

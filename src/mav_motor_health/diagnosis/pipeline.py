@@ -630,19 +630,23 @@ class StreamingDiagnoser:
     ) -> dict[int, dict[str, NDArray]]:
         counts = [np.asarray(b.time_s).size for b in batches]
         width = max(counts)
+        # where each batch's samples go in the rows (row r's first counts[r] places), all at once
+        at = np.arange(sum(counts)) + np.repeat(
+            np.arange(len(counts)) * width - np.cumsum([0, *counts[:-1]]), counts
+        )
 
         def rows(name: str, dtype: type = float, pad: float = np.nan) -> NDArray | None:
             if getattr(batches[0], name) is None:
                 return None
             out: NDArray = np.full((len(batches), width), pad, dtype=dtype)
-            for r, (batch, count) in enumerate(zip(batches, counts)):
-                out[r, :count] = getattr(batch, name)
+            out.ravel()[at] = np.concatenate([getattr(batch, name) for batch in batches])
             return out
 
         time_s = rows("time_s")
         assert time_s is not None
-        for r, count in enumerate(counts):  # padding: the row's last time (no interval), no values
-            time_s[r, count:] = time_s[r, count - 1] if count else 0.0
+        if min(counts) < width:  # padding: the row's last time (no interval), no values
+            for r, count in enumerate(counts):
+                time_s[r, count:] = time_s[r, count - 1] if count else 0.0
         motor_params = self.params[motors[0]] if isinstance(self.params, dict) else self.params
         cols, carries = diagnose_motors(
             motor_params,

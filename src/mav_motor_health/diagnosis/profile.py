@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._arrays import nan_to_zero
 from ..errors import ConfigError
 from .detection import SequentialRule
 from .plausibility import PlausibilityRule
@@ -286,7 +287,7 @@ class ThresholdProfile:
         if activity_v is None or not self.activity_band:
             current = self.current_halfwidth_a(voltage_v)
             return self.speed_band_rad_s, current, current.copy()
-        activity = np.nan_to_num(np.asarray(activity_v, dtype=float))
+        activity = nan_to_zero(np.asarray(activity_v, dtype=float))
         xs = [row[0] for row in self.activity_band]
         base = self.current_halfwidth_a(voltage_v)
         above = base + np.interp(activity, xs, [row[2] for row in self.activity_band])
@@ -321,7 +322,7 @@ class ThresholdProfile:
     def _widening(self, activity_v: ArrayLike, column: int) -> NDArray[np.float64]:
         """Column 1 (speed), 2 (current; above the model with four columns) or 3 (current below the model)
         of ``activity_band`` at each activity (linear, held outside)."""
-        a = np.nan_to_num(np.asarray(activity_v, dtype=float))
+        a = nan_to_zero(np.asarray(activity_v, dtype=float))
         return np.interp(
             a, [row[0] for row in self.activity_band], [row[column] for row in self.activity_band]
         )

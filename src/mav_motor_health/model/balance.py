@@ -162,10 +162,7 @@ def input_activity_rows(
     t, v = time_s, voltage_v
     rows, n = t.shape
     counts = [n] * rows if lengths is None else lengths
-    dv = v - previous(v, [c.last_v for c in carries])
-    prev_dv = previous(dv, [c.last_dv for c in carries])
-    zigzag = np.maximum(0.0, -dv * prev_dv)
-    zigzag = np.where(np.isfinite(zigzag), zigzag, 0.0)
+    zigzag, dv = _zigzag_rows(v, carries)
     # the fast and the slow low-pass in one call: the same samples, two time constants
     both, responses = first_order_responses(
         t,
@@ -174,6 +171,29 @@ def input_activity_rows(
         [c.response for c in carries] + [c.slow for c in carries],
         counts * 2,
     )
+    return _activity_rows(v, dv, both, responses, carries, counts)
+
+
+def _zigzag_rows(v: FloatArray, carries: list[ActivityCarry]) -> tuple[FloatArray, FloatArray]:
+    """:func:`input_activity_rows`' input to its low-passes, ``max(0, −ΔV_n·ΔV_(n−1))`` (0 where not
+    finite), and the changes ΔV."""
+    dv = v - previous(v, [c.last_v for c in carries])
+    prev_dv = previous(dv, [c.last_dv for c in carries])
+    zigzag = np.maximum(0.0, -dv * prev_dv)
+    return np.where(np.isfinite(zigzag), zigzag, 0.0), dv
+
+
+def _activity_rows(
+    v: FloatArray,
+    dv: FloatArray,
+    both: FloatArray,
+    responses: list[ResponseCarry],
+    carries: list[ActivityCarry],
+    counts: list[int],
+) -> tuple[FloatArray, list[ActivityCarry]]:
+    """:func:`input_activity_rows`' result from its two low-passes (``both``: the fast rows, then the slow
+    ones; ``responses`` their carries, alike)."""
+    rows = len(carries)
     activity = np.sqrt(np.maximum(np.maximum(both[:rows], both[rows:]), 0.0))
     news = []
     for r, (carry, last_v, last_dv) in enumerate(zip(carries, last_of(v, counts), last_of(dv, counts))):
@@ -328,12 +348,26 @@ def balance_deviations_rows(
     rows, n = t.shape
     counts = [n] * rows if lengths is None else lengths
     p = params
-    activity, c_a = input_activity_rows(t, v, activity_tau_s, [c.activity for c in carries], counts)
     # The balances average samples: an ESC that reports less often averages fewer of them in the same
     # time, and its noise is larger by √(interval); the activity that sets bands and low-pass says so.
     gaps = t - previous(t, [c.voltage.time_s for c in carries])
     gaps = np.where(gaps <= MAX_INTERVAL_S, gaps, np.nan)  # NaN holds the low-pass
-    interval, c_dt = first_order_responses(t, gaps, INTERVAL_TAU_S, [c.interval for c in carries], counts)
+    # the input activity's two low-passes (input_activity_rows) and the interval's in one call
+    activity_carries = [c.activity for c in carries]
+    zigzag_in, dv = _zigzag_rows(v, activity_carries)
+    low_passed, low_pass_carries = first_order_responses(
+        t,
+        np.concatenate([zigzag_in, zigzag_in, gaps]),
+        np.repeat([activity_tau_s, SLOW_FALL * activity_tau_s, INTERVAL_TAU_S], rows).reshape(-1, 1),
+        [c.response for c in activity_carries]
+        + [c.slow for c in activity_carries]
+        + [c.interval for c in carries],
+        counts * 3,
+    )
+    activity, c_a = _activity_rows(
+        v, dv, low_passed[: 2 * rows], low_pass_carries[: 2 * rows], activity_carries, counts
+    )
+    interval, c_dt = low_passed[2 * rows :], low_pass_carries[2 * rows :]
     interval = np.where(np.isfinite(interval) & (interval > 0), interval, INTERVAL_REF_S)
     zigzag = activity
     activity = activity * np.sqrt(interval / INTERVAL_REF_S)

@@ -123,12 +123,22 @@ def first_order_responses(
     if groups * times != rows or tau.shape[0] not in (1, times, rows):
         raise ValueError(f"{rows} targets for {times} rows of times and {tau.shape[0]} of time constants")
     tau3 = tau.reshape(groups if tau.shape[0] == rows and rows > times else 1, -1, n)
-    carry_t = np.array([c.time_s for c in carries]).reshape(groups, times)
-    carry_x = np.array([c.input for c in carries])
-    carry_y = np.array([c.output for c in carries])
+    carried = np.array([(c.time_s, c.input, c.output) for c in carries]).reshape(rows, 3)
+    carry_t = carried[:, 0].reshape(groups, times)
+    carry_x, carry_y = carried[:, 1], carried[:, 2]
     # The decay of each interval, Δt/τ: the first from each row's carried time
-    first_decay = _decay(np.clip(t[:, 0] - carry_t, 0.0, None), tau3[:, :, 0])
-    decay = _decay(np.clip(t[:, 1:] - t[:, :-1], 0.0, None), tau3[:, :, 1:])
+    gaps = np.empty(t.shape)
+    gaps[:, 0] = 0.0  # (replaced below by the carried time's)
+    np.subtract(t[:, 1:], t[:, :-1], out=gaps[:, 1:])
+    np.clip(gaps, 0.0, None, out=gaps)
+    first_gap = np.clip(t[:, 0] - carry_t, 0.0, None)
+    if _lagging(tau3):
+        decay_all = gaps / tau3
+        first_decay = first_gap / tau3[:, :, 0]
+        decay = decay_all[..., 1:]
+    else:
+        first_decay = _decay(first_gap, tau3[:, :, 0])
+        decay = _decay(gaps[:, 1:], tau3[:, :, 1:])
     if times == 1:
         out = _responses_one_time_row(
             x, carries, carry_x, carry_y, first_decay.reshape(rows), decay.reshape(-1, n - 1)
@@ -252,17 +262,28 @@ def _carries_at_last(
 ) -> list[ResponseCarry]:
     """Each row's carry at its last sample (a row without samples keeps its own)."""
     rows, times = len(carries), t.shape[0]
-    at = np.maximum(np.asarray(counts) - 1, 0)
-    index = np.arange(rows)
-    last_times = t[index % times, at].tolist()
-    inputs = x[index, at].tolist()
-    outputs = out[index, at].tolist()
+    n = t.shape[1]
+    if all(count == n for count in counts):  # every row full: its last column
+        last_times = np.tile(t[:, -1], rows // times).tolist()
+        inputs, outputs = x[:, -1].tolist(), out[:, -1].tolist()
+    else:
+        at = np.maximum(np.asarray(counts) - 1, 0)
+        index = np.arange(rows)
+        last_times = t[index % times, at].tolist()
+        inputs = x[index, at].tolist()
+        outputs = out[index, at].tolist()
+    if all(map(math.isfinite, inputs)) and all(counts):  # (the common case: each row's own last values)
+        return list(map(ResponseCarry, last_times, inputs, outputs))
     return [
-        carry
-        if count == 0
-        else ResponseCarry(time_s=time, input=value if math.isfinite(value) else carry.input, output=output)
+        carry if count == 0 else ResponseCarry(time, value if math.isfinite(value) else carry.input, output)
         for carry, count, time, value, output in zip(carries, counts, last_times, inputs, outputs)
     ]
+
+
+def _lagging(tau: FloatArray) -> bool:
+    """Whether every time constant is finite and positive (so that every decay is Δt/τ)."""
+    with np.errstate(invalid="ignore"):
+        return bool((tau > 0).all() and np.isfinite(tau).all())
 
 
 def _decay(dt: FloatArray, tau: FloatArray) -> FloatArray:
@@ -286,9 +307,14 @@ def previous(values: ArrayLike, carried: ArrayLike) -> FloatArray:
 def last_of(values: NDArray, lengths: Sequence[int] | NDArray[np.integer]) -> list:
     """Each row's value at its last sample (rows of ``lengths`` samples, then padding), as Python values;
     None for a row without samples."""
+    values = np.asarray(values)
+    n = values.shape[-1]
+    if all(count == n for count in lengths) and n > 0:  # every row full: its last column
+        last: list = values[:, -1].tolist()
+        return last
     rows = np.arange(len(lengths))
     at = np.maximum(np.asarray(lengths, dtype=np.int64) - 1, 0)
-    picked = np.asarray(values)[rows, at].tolist()
+    picked = values[rows, at].tolist()
     return [value if count > 0 else None for value, count in zip(picked, lengths)]
 
 
@@ -414,21 +440,26 @@ def _responses_scalar(
         row_t = times[r % len(times)][:count]  # the rows' times and time constants repeat (see above)
         row_tau = taus[r % len(taus)][:count]
         values = out[r]
-        for k, (tk, xk, tau_k) in enumerate(zip(row_t, row[:count], row_tau)):
+        # each interval's decay (the times' alone: the previous time is the previous sample's, whatever
+        # its input), all exponentials in one numpy call: numpy's exp, as the vectorised path's (libm's
+        # differs from numpy's SIMD exp in the last bit for some arguments on some processors, AVX-512,
+        # and the paths must agree)
+        decays = []
+        for tk, tau_k in zip(row_t, row_tau):
             dt = max(tk - prev_t, 0.0) if math.isfinite(tk - prev_t) else math.inf
-            decay = dt / tau_k if math.isfinite(tau_k) and tau_k > 0 else math.inf
+            decays.append(dt / tau_k if math.isfinite(tau_k) and tau_k > 0 else math.inf)
+            prev_t = tk
+        factors = np.exp(np.negative(decays)).tolist()
+        for k, (xk, decay, a) in enumerate(zip(row[:count], decays, factors)):
             if not math.isfinite(xk):
                 pass  # a missing input: the output holds
             elif not math.isfinite(decay) or decay >= _RESTART_DECAY or not math.isfinite(y):
                 y = xk  # no lag (or no past): the target itself
             else:
                 mean_in = 0.5 * (prev_x + xk) if math.isfinite(prev_x) else xk
-                # numpy's exp, as the vectorised path's: libm's differs from numpy's SIMD exp in the
-                # last bit for some arguments on some processors (AVX-512), and the paths must agree
-                a = float(np.exp(-decay))
                 y = a * y + (1.0 - a) * mean_in
             values[k] = y
-            prev_t, prev_x = tk, xk
+            prev_x = xk
         last = row[count - 1]
         news.append(
             ResponseCarry(

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..._arrays import one_of
 from ..detection import DIRECTIONS, SequentialCarry, direction_evidence, sequential_alarms
 from ..persistence import PersistenceCarry, announce
 from ..states import MotorState
@@ -57,7 +58,7 @@ class Sequential(Rule):
                 z_omega_alone=deviation / (alone_band / sigmas),
             )
         # judged: the steady samples the tree named a motor state on (not a stall, a bad sensor, no data)
-        judged = frame.steady & ~np.isin(frame.state, _NOT_DIRECTIONS)
+        judged = frame.steady & ~one_of(frame.state, _NOT_DIRECTIONS)
         observation_s = 2.0 * frame.low_pass_s
         t = frame.time_s
         alarms = np.zeros(t.shape, dtype=np.int8)
@@ -98,7 +99,7 @@ class Persistence(Rule):
         hold_s, hold_per_activity_s = rule.hold_s(), rule.hold_per_activity_s()
         persisted = state
         if frame.announced_elsewhere:
-            persisted = np.where(np.isin(state, frame.announced_elsewhere), MotorState.NORMAL, state)
+            persisted = np.where(one_of(state, frame.announced_elsewhere), MotorState.NORMAL, state)
             persisted = persisted.astype(state.dtype)
         announced = np.zeros(t.shape, dtype=np.int8)
         new = list(carries)

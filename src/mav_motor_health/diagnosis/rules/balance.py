@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from ..._arrays import nan_to_zero
 from ...errors import ConfigError
 from ...model.balance import BalanceCarry, balance_deviations_rows
 from ...model.dynamics import ResponseCarry, first_order_responses
@@ -131,7 +132,7 @@ class BalanceRule(CompareRule):
         # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air
         # is no step at all) puts two operating points into the low-passes: judge after settle_s. A new
         # stream (the first sample, or after a gap) waits until the activity is known too.
-        step_v = self.step_v * volts + 3.0 * np.nan_to_num(bal.zigzag_v)  # the jumps as measured, not scaled
+        step_v = self.step_v * volts + 3.0 * nan_to_zero(bal.zigzag_v)  # the jumps as measured, not scaled
         # A motor whose low-passed input is at idle (below min_command: spin-down, braking with its current
         # unread) restarts the wait: when it comes back the low-passes still hold the idle. The low-passed
         # input, not the sample: in gusty air single commands dip to idle and back all the time.

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..._arrays import one_of
 from ...model.equations import current_from_speed
 from ..plausibility import SensorIssue
 from ..states import MotorState
@@ -63,8 +64,8 @@ class Judged(Rule):
             )
             if not known.all():  # (the lost-load check only where some sample lies beyond)
                 known = known | _unloaded_beyond(frame)
-            steady = steady & (known | np.isin(state, TRANSIENT_OK))
-        eligible = (steady | np.isin(state, TRANSIENT_OK)) & (state != MotorState.NO_DATA)
+            steady = steady & (known | one_of(state, TRANSIENT_OK))
+        eligible = (steady | one_of(state, TRANSIENT_OK)) & (state != MotorState.NO_DATA)
         if frame.command is not None and profile.min_command > 0:
             idle = np.asarray(frame.command, dtype=float) < profile.min_command  # idle and spin-up
             eligible &= ~idle

@@ -1,0 +1,30 @@
+"""The hot path's replacements of numpy.nan_to_num and numpy.isin give numpy's own arrays (issue 18)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mav_motor_health._arrays import nan_to_zero, one_of
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_nan_to_zero_is_nan_to_num(dtype) -> None:
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(3, 50)).astype(dtype)
+    x[rng.random(x.shape) < 0.2] = np.nan
+    x.flat[:4] = [np.inf, -np.inf, -0.0, np.nan]
+    for values in (x, x[:, 4:], x[0], x[:, :0], np.where(np.isnan(x), 1.0, x).astype(dtype)[:, 4:]):
+        got, want = nan_to_zero(values), np.nan_to_num(values)
+        assert got.dtype == want.dtype and got.shape == want.shape
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
+        assert not np.shares_memory(got, values)
+    np.testing.assert_array_equal(nan_to_zero(np.arange(4)), np.nan_to_num(np.arange(4)))
+
+
+def test_one_of_is_isin() -> None:
+    rng = np.random.default_rng(1)
+    states = rng.integers(0, 13, (6, 40)).astype(np.int8)
+    for codes in ((), (3,), (1, 3, 4), (2, 5, 7, 8, 10, 12)):
+        np.testing.assert_array_equal(one_of(states, codes), np.isin(states, codes))
