@@ -97,7 +97,7 @@ PAIRING_BINS = 4.0
 #: an idle offset less certain than this (of the command range) is not taken from the data
 IDLE_OFFSET_STDERR_MAX = 0.005
 #: ESC-sum / battery-monitor ratios a current sensor's gain can explain (AM32 reads ~0.78; the real PX4
-#: quad in shared/real_logs 0.54); outside them the comparison itself is not trusted
+#: quad in shared/real_logs 0.47); outside them the comparison itself is not trusted
 BATTERY_GAIN_RANGE = (0.3, 3.0)
 #: the speed range (95th over 5th percentile) a flight must span before its data may choose k: over a
 #: narrower range ω^k and a linear term are too alike for any k to be told from 3
