@@ -24,18 +24,19 @@ every instant (see :mod:`.balance`), so identification fits them as balances ove
    with the bus voltage and a motor-side one 0; the pack's discharge over the flight measures which
    (no command, no idle offset enters). Where the estimate lies less than :data:`SIDE_MARGIN_SE`
    standard errors beyond the midpoint, or more than that from the likelier side's own value, the
-   flight does not tell: the convention with the smaller residual is kept, as before the test, and a
-   finding says it is a guess (the diagnosis measures its noise and offsets through it on the same
-   flight; set aside, the current named no fault on the held-out worlds where it had; docs/model.md).
+   flight does not tell: with a battery monitor, the convention whose implied sensor gain (the ESCs'
+   summed charge over the battery's, read as each side's input current) lies nearer 1; without one, the
+   convention with the smaller residual; a finding says it is a guess (docs/model.md).
 2. **Current scale** ``g``: a current sensor's gain cannot be told from the motor's R by the motor's own
-   data (R/g, g·C_p, g·J explain the same log). Where the log has the battery monitor, the ESCs' summed
-   input current against the battery current gives ``g`` (a regression with an offset for the rest of the
-   vehicle's draw; where that offset comes out negative, the ratio of the charges both counted over the
-   flight, :func:`_battery_gain`); else ``g = 1`` is assumed and R, C_p, B, T_f and J are stated as
-   "scaled by the current sensor's unknown gain".
-3. **Mechanical, with the inertia**: ``k_t·(d·V − k_e·ω)/R = C_p·ω^k + B·ω + T_f + J·dω/dt`` (the current
-   the electrical balance implies: it needs no current sensor and no derivative, since the low-passed
-   ``J·dω/dt`` is ``J·(ω − ω̄)/τ`` exactly). Linear in (C_p, B, T_f, J) for each k; bounded ≥ 0; B and
+   data (R/g, g·C_p, g·J explain the same log). Where the log has the battery monitor, ``g`` is the ratio
+   of the charges the ESCs (summed input current) and the battery counted over the flight
+   (:func:`gain_from_pairs`); else ``g = 1`` is assumed and R, C_p, B, T_f and J are stated as "scaled by
+   the current sensor's unknown gain".
+3. **Mechanical, with the inertia**: ``k_t·i = C_p·ω^k + B·ω + T_f + J·dω/dt``, with ``i`` both the motor
+   current the ESC reports and the one the electrical balance implies, ``(d·V − k_e·ω)/R``, each route
+   weighed by its own scatter, through a second-order state-variable filter (no numerical derivative:
+   the filtered ``J·dω/dt`` is ``J`` times the difference of the filter's two stages over τ). Linear in
+   (C_p, B, T_f, J) for each k; bounded ≥ 0; B and
    T_f carry a weak prior toward the prior motor's share of the load (a hover says little about C_p vs B
    vs T_f; the report says which parameters the data determined). k = 3 unless another k lowers the BIC
    by :data:`K_BIC_MARGIN` or more.
@@ -422,12 +423,6 @@ def _battery_gain(
     return None if pairs is None else gain_from_pairs(*pairs)
 
 
-def _charge_ratio(data: Sequence[_MotorData], table: TelemetryTable, side: str, esc: EscMap) -> float | None:
-    """The ESCs' summed charge (as ``side``'s input current) over the battery monitor's, same bins."""
-    pairs = _battery_pairs(data, table, side, esc)
-    return None if pairs is None else float(np.sum(pairs[0]) / np.sum(pairs[1]))
-
-
 def gain_from_pairs(esc_sum_a: FloatArray, battery_a: FloatArray) -> tuple[float, float]:
     """(gain, offset A) from :func:`battery_current_pairs`: the ratio of the charges both counted over
     the flight, the rest of the vehicle's draw not told apart (offset 0: the gain comes out low by that
@@ -461,35 +456,39 @@ def _motor_current(m: _MotorData, esc: EscMap, side: str, gain: float) -> FloatA
     return np.where(np.isfinite(filled), filled, current[have][0])
 
 
-def _mechanical_rows(
-    m: _MotorData,
-    esc: EscMap,
-    k_e: float,
-    r_ohm: float,
-    k: float,
-    tau_s: float,
-    current_a: FloatArray | None = None,
-) -> tuple[FloatArray, FloatArray]:
-    """The mechanical balance k_t·i = C_p·ω^k + B·ω + T_f + J·dω/dt through a second-order state-variable
-    filter F (two first-order low-passes of ``tau_s``): design matrix [F(ω^k), F(ω), 1, d F(ω)/dt] and
-    target F(k_t·i), with i the motor current ``current_a`` where the ESC reports a usable one, else
-    (d·V − k_e·ω)/R from the voltage balance. The second stage keeps the speed's sample noise out of
-    the derivative (with one stage, d F(ω)/dt = (ω − F(ω))/τ carries it whole, and the inertia, a
-    regressor measured with noise, comes out low)."""
+def _twice(time_s: FloatArray, values: FloatArray, tau_s: float) -> FloatArray:
+    """The second-order state-variable filter F: two first-order low-passes of ``tau_s``."""
+    return _lowpass(time_s, _lowpass(time_s, values, tau_s), tau_s)
+
+
+def _settled(time_s: FloatArray, tau_s: float) -> NDArray[np.bool_]:
+    """The samples after F has settled from its start."""
+    return time_s - time_s[0] > 6 * tau_s
+
+
+def _mechanical_design(m: _MotorData, k: float, tau_s: float) -> FloatArray:
+    """The mechanical balance k_t·i = C_p·ω^k + B·ω + T_f + J·dω/dt through F (:func:`_twice`): the
+    design matrix [F(ω^k), F(ω), 1, d F(ω)/dt] over the settled samples. The second stage keeps the
+    speed's sample noise out of the derivative (with one stage, d F(ω)/dt = (ω − F(ω))/τ carries it
+    whole, and the inertia, a coefficient on a regressor measured with noise, comes out low)."""
     t = m.time_s
-    if current_a is not None:
-        torque = k_e * current_a
-    else:
-        torque = k_e * (esc.duty(m.command) * m.bus_v - k_e * m.omega) / r_ohm
-
-    def twice(x: FloatArray) -> FloatArray:
-        return _lowpass(t, _lowpass(t, x, tau_s), tau_s)
-
     once = _lowpass(t, m.omega, tau_s)
     w_bar = _lowpass(t, once, tau_s)
-    a = np.column_stack([twice(m.omega**k), w_bar, np.ones_like(t), (once - w_bar) / tau_s])
-    settle = t - t[0] > 6 * tau_s
-    return a[settle], twice(torque)[settle]
+    a = np.column_stack([_twice(t, m.omega**k, tau_s), w_bar, np.ones_like(t), (once - w_bar) / tau_s])
+    return a[_settled(t, tau_s)]
+
+
+def _mechanical_targets(
+    m: _MotorData, esc: EscMap, k_e: float, r_ohm: float, tau_s: float, current_a: FloatArray | None
+) -> list[FloatArray]:
+    """F(k_t·i) over the settled samples, per route: i from the voltage balance, (d·V − k_e·ω)/R, and
+    (where the ESC reports a usable one) the motor current ``current_a``."""
+    t = m.time_s
+    torques = [k_e * (esc.duty(m.command) * m.bus_v - k_e * m.omega) / r_ohm]
+    if current_a is not None:
+        torques.append(k_e * current_a)
+    settled = _settled(t, tau_s)
+    return [_twice(t, torque, tau_s)[settled] for torque in torques]
 
 
 def _scatter(rows: Sequence[tuple[FloatArray, FloatArray]]) -> float:
@@ -561,8 +560,8 @@ def identify(
         else:
             guessed = True
             told = f" ({side_test.describe()})" if side_test is not None else ""
-            found = {s: _charge_ratio(data, table, s, EscMap(fits[s][0])) for s in fits}
-            charges = {s: r for s, r in found.items() if r is not None and r > 0}
+            found = {s: _battery_gain(data, table, s, EscMap(fits[s][0])) for s in fits}
+            charges = {s: r[0] for s, r in found.items() if r is not None and r[0] > 0}
             if len(charges) == len(found):
                 # the side whose sensor gain the battery's charge makes nearer 1: read on the wrong side
                 # the sum comes out near duty x (input as motor) or 1/duty x (motor as input) the battery's
@@ -638,34 +637,28 @@ def identify(
     # divides the commands' pairing error by R, which the balance often puts near its bound)
     measured = {m.motor: _motor_current(m, esc, side, gain) if usable.get(m.motor) else None for m in data}
 
-    def routes(kk: float) -> list[list[tuple[FloatArray, FloatArray]]]:
-        """The mechanical balance's rows with the torque from the voltage balance (every motor) and
-        from the reported current (the motors that report one)."""
-        e = per_motor_e
-        voltage = [
-            _mechanical_rows(m, esc, e[m.motor][0], motors_r[m.motor], kk, MECHANICAL_TAU_S) for m in data
-        ]
-        current = [
-            _mechanical_rows(
-                m, esc, e[m.motor][0], motors_r[m.motor], kk, MECHANICAL_TAU_S, measured[m.motor]
-            )
-            for m in data
-            if measured[m.motor] is not None
-        ]
-        kept = ([r for r in route if r[1].size] for route in (voltage, current))
-        return [route for route in kept if route]
-
-    if not routes(3.0):
+    targets = {
+        m.motor: _mechanical_targets(
+            m, esc, per_motor_e[m.motor][0], motors_r[m.motor], MECHANICAL_TAU_S, measured[m.motor]
+        )
+        for m in data
+    }
+    if not any(y.size for ys in targets.values() for y in ys):
         raise FitError(
             f"no motor turned for longer than the mechanical balance's filter needs to settle "
             f"({6 * MECHANICAL_TAU_S:g} s); expected a flight of tens of seconds"
         )
     results = {}
     for kk in candidates:
-        # both routes fitted together, each in units of its own scatter: where R came out near its
-        # bound the voltage route's torque is the commands' pairing error over R and counts for little;
-        # where the reading is averaged or lags, the current route's inertia term does
-        rows = [(a / sd, y / sd) for route in routes(kk) for sd in [_scatter(route)] for a, y in route]
+        design = {m.motor: _mechanical_design(m, kk, MECHANICAL_TAU_S) for m in data}
+        # the routes (the voltage balance's torque for every motor, the reported current's where there is
+        # one), fitted together, each in units of its own scatter: where R came out near its bound the
+        # voltage route's torque is the commands' pairing error over R and counts for little; where the
+        # reading is averaged or lags, the current route's inertia term does
+        routes = [
+            [(design[mo], ys[r]) for mo, ys in targets.items() if len(ys) > r and ys[r].size] for r in (0, 1)
+        ]
+        rows = [(a / sd, y / sd) for route in routes if route for sd in [_scatter(route)] for a, y in route]
         # B·ω and T_f are small shares of a propeller's load: a weak prior of 0 ± PRIOR_SHARE of it
         prior_x = np.zeros(4)
         prior_sd = np.array([np.inf, PRIOR_SHARE * load / w_typ, PRIOR_SHARE * load, np.inf])
@@ -687,10 +680,8 @@ def identify(
         chosen = choose_exponent(k_bic)
     x, err, _ = results[chosen]
     for m in data:  # each motor's mechanical balance residual under the shared fit: its noise floor
-        a, y = _mechanical_rows(
-            m, esc, per_motor_e[m.motor][0], motors_r[m.motor], chosen, MECHANICAL_TAU_S, measured[m.motor]
-        )
-        noise[m.motor]["torque_nm"] = _rms(y - a @ x)  # on the reported current where there is one
+        y = targets[m.motor][-1]  # on the reported current where there is one
+        noise[m.motor]["torque_nm"] = _rms(y - _mechanical_design(m, chosen, MECHANICAL_TAU_S) @ x)
     c_p, b, t_f, inertia = (float(v) for v in x)
     determined = {
         "idle_offset": offset_from,
