@@ -35,8 +35,21 @@ exactly (the simulator's table, a CSV with both).
 **The conditions the noise was measured in.** σ is measured up to the busiest input of the healthy
 flight and its loosest pairing (``activity_high_v``, ``pairing_error_high_rad_s``: the
 :data:`CONDITION_SHARE` quantile of its judged samples'; the loosest few per cent are too few samples to
-measure a tail σ on); beyond them σ would be an extrapolation, and the samples are not judged (the
-profile's ``range_margin`` widens the limits as it widens the speed range; a stall is still named).
+measure a tail σ on); beyond them σ is an extrapolation (the profile's ``range_margin`` widens the
+limits as it widens the speed range).
+
+**Beyond the measured conditions.** A vehicle identified from a calm flight meets moderate air with two
+to five times the input activity its flight had; not judging there leaves most of a windy flight
+unjudged. Extrapolating σ(a) as measured does not hold: on the development worlds' healthy flights beyond
+the limits, the deviations' tail reached two times σ(a) for the speed and four times for the current
+(the input-side current's reading over a jittering duty is biased by the jitter's square, and the
+pairing error's effect grows with it). So beyond the limits σ is multiplied by ``excess ** growth``,
+``excess`` the larger of the activity's and the pairing error's ratio to their limits, ``growth`` the
+profile's ``conditions_growth`` (2: the tail then stayed within σ on all but a few of those flights), up to
+``conditions_reach`` times the limits; beyond that nothing is judged (a stall still is named). Only
+where the model speed lies in the identified range: beyond it only a propeller that lost its load is
+judged, against σ as measured (rules/judged.py). The wider bands there cost sensitivity, not false events:
+a departure has to be larger to be named in air rougher than the vehicle was identified in.
 
 A profile then sets ``noise_bands = n``: the bands are n·σ(a) of each motor, a dimensionless number that
 is the same for every vehicle. A vehicle file without the noise cannot be diagnosed with such a profile;
@@ -192,32 +205,66 @@ class BandNoise:
             pairing_error_high_rad_s=float(values.get("pairing_error_high_rad_s", math.nan)),
         )
 
+    def in_speed_range(self, omega_model_rad_s: ArrayLike, margin: float) -> NDArray[np.bool_]:
+        """Where the model speed lies in the range the healthy flight covered, widened by ``margin`` (a
+        share of the range's ends); everywhere where the range is not known."""
+        w = np.asarray(omega_model_rad_s, dtype=float)
+        if not (math.isfinite(self.omega_low_rad_s) and math.isfinite(self.omega_high_rad_s)):
+            return np.ones(w.shape, dtype=bool)
+        return (w >= (1.0 - margin) * self.omega_low_rad_s) & (w <= (1.0 + margin) * self.omega_high_rad_s)
+
+    def beyond_conditions(
+        self, margin: float, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
+        """How far each sample lies beyond the conditions σ was measured in: the larger of its input
+        activity over the flight's busiest and its pairing error (where given) over the flight's loosest,
+        those widened by ``margin``; at most 1 within both (0 where neither limit is known)."""
+        excess = np.zeros(np.shape(activity_v))
+        for values, high in (
+            (activity_v, self.activity_high_v),
+            (pairing_error_rad_s, self.pairing_error_high_rad_s),
+        ):
+            if values is None or not math.isfinite(high):
+                continue
+            x, limit = nan_to_zero(np.asarray(values, dtype=float)), (1.0 + margin) * high
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = x / limit if limit > 0 else np.where(x > 0, np.inf, 0.0)
+            excess = np.maximum(excess, ratio)
+        return excess
+
     def known(
         self,
         omega_model_rad_s: ArrayLike,
         margin: float,
         activity_v: ArrayLike | None = None,
         pairing_error_rad_s: ArrayLike | None = None,
+        reach: float = 1.0,
     ) -> NDArray[np.bool_]:
         """Where the model speed lies in the range the healthy flight covered, widened by ``margin`` (a
         share of the range's ends), and the input activity and the pairing error (where given) are at most
-        the flight's highest, widened alike; everywhere where a range is not known."""
-        w = np.asarray(omega_model_rad_s, dtype=float)
-        inside = np.ones(w.shape, dtype=bool)
-        if math.isfinite(self.omega_low_rad_s) and math.isfinite(self.omega_high_rad_s):
-            inside &= (w >= (1.0 - margin) * self.omega_low_rad_s) & (
-                w <= (1.0 + margin) * self.omega_high_rad_s
-            )
-        if activity_v is not None and math.isfinite(self.activity_high_v):
-            inside &= (
-                nan_to_zero(np.asarray(activity_v, dtype=float)) <= (1.0 + margin) * self.activity_high_v
-            )
-        if pairing_error_rad_s is not None and math.isfinite(self.pairing_error_high_rad_s):
-            inside &= (
-                nan_to_zero(np.asarray(pairing_error_rad_s, dtype=float))
-                <= (1.0 + margin) * self.pairing_error_high_rad_s
-            )
+        ``reach`` times the flight's highest, widened alike; everywhere where a range is not known."""
+        inside = self.in_speed_range(omega_model_rad_s, margin)
+        if activity_v is not None or pairing_error_rad_s is not None:
+            shape = np.shape(omega_model_rad_s)
+            activity = np.zeros(shape) if activity_v is None else activity_v
+            inside &= self.beyond_conditions(margin, activity, pairing_error_rad_s) <= reach
         return inside
+
+    def growth(
+        self,
+        omega_model_rad_s: ArrayLike,
+        margin: float,
+        activity_v: ArrayLike,
+        pairing_error_rad_s: ArrayLike | None,
+        exponent: float,
+    ) -> NDArray[np.float64]:
+        """The factor σ is multiplied by beyond the conditions it was measured in (module doc, "Beyond the
+        measured conditions"): ``excess ** exponent`` where :meth:`beyond_conditions` exceeds 1 and the
+        model speed lies in the identified range; 1 elsewhere (beyond the range only a propeller that lost
+        its load is judged, against σ as measured: rules/judged.py)."""
+        excess = np.maximum(self.beyond_conditions(margin, activity_v, pairing_error_rad_s), 1.0)
+        grown = np.where(np.isfinite(excess), excess, 1.0) ** exponent
+        return np.where(self.in_speed_range(omega_model_rad_s, margin), grown, 1.0)
 
 
 def _tail_sigma(deviation: NDArray[np.float64]) -> float:

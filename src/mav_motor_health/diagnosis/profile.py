@@ -125,6 +125,11 @@ class ThresholdProfile:
     identification flight covered, by more than this share of the range's ends, or whose input activity
     exceeds the flight's busiest by more than this share, are not judged (the model, or its noise, was
     never checked there; stalls are still named). 0: judged everywhere.
+    ``conditions_reach`` (≥ 1, with ``noise_bands`` and ``range_margin``): the input activity and the
+    pairing error are judged up to this multiple of those limits, where σ is an extrapolation, multiplied
+    by ``excess ** conditions_growth`` (≥ 0; excess: how many times the limit the sample lies beyond it),
+    so that the bands grow faster there than the noise was measured to grow (:mod:`.noise`, "Beyond the
+    measured conditions"). 1, the default: nothing beyond the limits.
     """
 
     name: str
@@ -144,6 +149,8 @@ class ThresholdProfile:
     noise_bands: float = 0.0
     stall_split_typical: float = 0.0
     range_margin: float = 0.0
+    conditions_reach: float = 1.0
+    conditions_growth: float = 0.0
     steady: CompareRule = field(default_factory=StepRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
@@ -211,6 +218,18 @@ class ThresholdProfile:
                 f"{self.range_margin!r}",
                 key="range_margin",
                 expected="a share 0..10 of the identified speed range's ends (0: judged everywhere)",
+            )
+        if not 1 <= self.conditions_reach <= 100:
+            raise ConfigError(
+                f"{self.conditions_reach!r}",
+                key="conditions_reach",
+                expected="a multiple 1..100 of the identified flight's busiest input and loosest pairing (1: not beyond)",
+            )
+        if not 0 <= self.conditions_growth <= 4:
+            raise ConfigError(
+                f"{self.conditions_growth!r}",
+                key="conditions_growth",
+                expected="an exponent 0..4 of the bands' growth beyond the identified flight's conditions",
             )
         if not self.stall_split_typical >= 0:
             raise ConfigError(

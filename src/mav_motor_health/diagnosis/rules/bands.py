@@ -34,8 +34,16 @@ class Bands(Rule):
             a = np.zeros(shape) if frame.activity_v is None else frame.activity_v
             e = frame.pairing_error_rad_s
             speed, current = np.empty(shape), np.empty(shape)
+            exponent = profile.conditions_growth if profile.conditions_reach > 1 else 0.0
             for r, motor_noise in enumerate(noise):
-                speed[r], current[r] = motor_noise.sigmas(a[r], None if e is None else e[r])
+                e_r = None if e is None else e[r]
+                speed[r], current[r] = motor_noise.sigmas(a[r], e_r)
+                if exponent > 0:  # beyond the conditions σ was measured in it grows faster (noise.py)
+                    grow = motor_noise.growth(
+                        frame.omega_model_rad_s[r], profile.range_margin, a[r], e_r, exponent
+                    )
+                    speed[r] *= grow
+                    current[r] *= grow
             frame.speed_band_rad_s = profile.noise_bands * speed
             frame.current_band_a = profile.noise_bands * current
             frame.current_band_below_a = frame.current_band_a.copy()

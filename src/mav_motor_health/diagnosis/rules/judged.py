@@ -58,6 +58,7 @@ class Judged(Rule):
                         profile.range_margin,
                         None if activity is None else activity[r],
                         None if pairing is None else pairing[r],
+                        profile.conditions_reach,
                     )
                     for r, n in enumerate(noise)
                 ]
