@@ -89,6 +89,8 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ("[persistence]\nmax_depth = 0.5\n", "persistence.max_depth"),
         ("[steady]\nslow_factor = 0.5\n", "steady.slow_factor"),
         ("[profile]\nslow_band_fraction = 1.5\n", "profile.slow_band_fraction"),
+        ("[profile]\nconditions_reach = 0.5\n", "profile.conditions_reach"),
+        ("[profile]\nconditions_growth = -1\n", "profile.conditions_growth"),
     ],
 )
 def test_bad_profiles(tmp_path: Path, text: str, key: str) -> None:

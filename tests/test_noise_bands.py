@@ -251,8 +251,9 @@ def test_the_model_each_motor_is_judged_against_carries_its_healthy_offset(paper
 
 
 def test_in_busier_air_than_the_identification_flight_nothing_is_judged_but_a_stall_is_named(paper_motor):
+    # a profile that does not reach beyond the flight's conditions (the shipped one does: next test)
     table = sources.read(FLIGHT)
-    profile = load_profile("flight_vehicle")
+    profile = dataclasses.replace(load_profile("flight_vehicle"), conditions_reach=1.0)
     known = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=3.8) for m in range(1, 7)}
     everywhere = diagnose(table, paper_motor, profile, known)
     activity = everywhere["input_activity_v"]
@@ -270,6 +271,41 @@ def test_in_busier_air_than_the_identification_flight_nothing_is_judged_but_a_st
     # a tail σ on)
     table = diagnosed_table(np.random.default_rng(5), {1: 4000})
     assert measure_band_noise(table)[1].activity_high_v == pytest.approx(0.95, abs=0.01)
+
+
+def test_beyond_the_flights_conditions_the_bands_grow_faster_up_to_the_reach_and_nothing_beyond(paper_motor):
+    """The shipped profile judges input busier than the identification flight's, up to
+    ``conditions_reach`` times its limit, in bands grown by (a / limit) ** ``conditions_growth`` beyond
+    the limit (diagnosis/noise.py, "Beyond the measured conditions"); beyond the reach nothing (a stall
+    still is named); within the limit everything as before."""
+    table = sources.read(FLIGHT)
+    profile = load_profile("flight_vehicle")
+    reach, growth = profile.conditions_reach, profile.conditions_growth
+    assert reach > 1 and growth > 0
+    known = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=3.8) for m in range(1, 7)}
+    everywhere = diagnose(table, paper_motor, profile, known)
+    activity = everywhere["input_activity_v"]
+    calm_flight = float(np.quantile(activity[everywhere["steady"]], 0.2))  # a calmer flight's busiest
+    limited = {m: dataclasses.replace(n, activity_high_v=calm_flight) for m, n in known.items()}
+    guarded = diagnose(table, paper_motor, profile, limited)
+    excess = activity / ((1.0 + profile.range_margin) * calm_flight)
+    beyond, reached = excess > reach, (excess > 1.0) & (excess <= reach)
+    stall = np.isin(guarded["state"], (MotorState.F2_1, MotorState.F4_2, MotorState.STALLED))
+    steady = everywhere["steady"]
+    assert reached[steady].mean() > 0.1 and beyond[steady].mean() > 0.1
+    assert not guarded["steady"][beyond & ~stall].any()
+    np.testing.assert_array_equal(guarded["steady"][~beyond], steady[~beyond])  # judged up to the reach
+    speed, current = known[1].sigmas(activity)
+    grown = np.maximum(excess, 1.0) ** growth
+    m1 = guarded["motor"] == 1
+    np.testing.assert_allclose(guarded["speed_band_rad_s"][m1], profile.noise_bands * (speed * grown)[m1])
+    np.testing.assert_allclose(guarded["current_band_a"][m1], profile.noise_bands * (current * grown)[m1])
+    assert (grown[m1 & reached] > 1.0).all()
+    # the healthy motors of this flight stay NORMAL where they are judged in the grown bands
+    healthy = (guarded["motor"] != 1) & guarded["steady"] & reached
+    assert healthy.sum() > 500 and (guarded["state"][healthy] == MotorState.NORMAL).mean() > 0.995
+    stalled = guarded["announced"][(guarded["motor"] == 1) & (guarded["time_s"] > 31.0)]
+    assert (stalled == MotorState.F4_2).mean() > 0.9
 
 
 def test_the_noise_grows_with_the_pairing_error_as_the_healthy_flights_did() -> None:
@@ -301,7 +337,8 @@ def test_with_the_pairing_measured_the_bands_grow_with_it_and_looser_pairing_is_
     fixed shares of the bands (``pairing_current_share``, ``pairing_speed_share``) are for profiles and
     vehicle files without it."""
     table = sources.read(SITL_LOGS / "flight_F4.1_moderate.tlog")  # pairs commands 20-100 ms apart
-    profile = load_profile("flight_vehicle")
+    # a profile that does not reach beyond the flight's loosest pairing (the shipped one does: below)
+    profile = dataclasses.replace(load_profile("flight_vehicle"), conditions_reach=1.0)
     known = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=3.8) for m in range(1, 7)}
     before = diagnose(table, paper_motor, profile, known)  # a vehicle file that does not say: as before
     error = before["pairing_error_rad_s"]
@@ -326,6 +363,20 @@ def test_with_the_pairing_measured_the_bands_grow_with_it_and_looser_pairing_is_
     assert looser.mean() > 0.2 and not after["steady"][looser & ~stall].any()
     assert (after["steady"] & ~before["steady"] & ~looser).any()  # judged now, in wider bands
     assert not ((after["sensor_flags"] & SensorIssue.CURRENT_UNPAIRED) != 0).any()
+    # the shipped profile judges looser pairing too, up to conditions_reach times the limit, in bands
+    # grown by the excess (diagnosis/noise.py, "Beyond the measured conditions"): here for a flight
+    # that paired about four times as tightly as this log (its loosest 20 rad/s; this log's 48-140)
+    shipped = load_profile("flight_vehicle")
+    tight = {m: dataclasses.replace(n, pairing_error_high_rad_s=20.0) for m, n in measured.items()}
+    reaching = diagnose(table, paper_motor, shipped, tight)
+    excess = error / ((1.0 + shipped.range_margin) * 20.0)
+    within = (excess > 1.0) & (excess <= shipped.conditions_reach)
+    stall = np.isin(reaching["state"], (MotorState.F2_1, MotorState.F4_2, MotorState.STALLED))
+    assert (reaching["steady"] & within & ~stall).mean() > 0.1
+    further = np.maximum(excess, 1.0) ** shipped.conditions_growth
+    np.testing.assert_allclose(reaching["speed_band_rad_s"][m1], shipped.noise_bands * (grown * further)[m1])
+    beyond = excess > shipped.conditions_reach
+    assert beyond.mean() > 0.01 and not reaching["steady"][beyond & ~stall].any()
 
 
 def test_a_motor_faster_than_identified_and_drawing_less_than_it_needed_there_is_judged(paper_motor) -> None:

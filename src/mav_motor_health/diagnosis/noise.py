@@ -39,17 +39,17 @@ measure a tail σ on); beyond them σ is an extrapolation (the profile's ``range
 limits as it widens the speed range).
 
 **Beyond the measured conditions.** A vehicle identified from a calm flight meets moderate air with two
-to five times the input activity its flight had; not judging there leaves most of a windy flight
-unjudged. Extrapolating σ(a) as measured does not hold: on the development worlds' healthy flights beyond
-the limits, the deviations' tail reached two times σ(a) for the speed and four times for the current
-(the input-side current's reading over a jittering duty is biased by the jitter's square, and the
-pairing error's effect grows with it). So beyond the limits σ is multiplied by ``excess ** growth``,
-``excess`` the larger of the activity's and the pairing error's ratio to their limits, ``growth`` the
-profile's ``conditions_growth`` (2: the tail then stayed within σ on all but a few of those flights), up to
-``conditions_reach`` times the limits; beyond that nothing is judged (a stall still is named). Only
-where the model speed lies in the identified range: beyond it only a propeller that lost its load is
-judged, against σ as measured (rules/judged.py). The wider bands there cost sensitivity, not false events:
-a departure has to be larger to be named in air rougher than the vehicle was identified in.
+to five times the input activity and pairing error its flight had; not judging there leaves most of a
+windy flight unjudged. Extrapolating σ(a, e) as measured does not hold: on the development worlds'
+healthy flights beyond the limits, the deviations' tail reached about two times σ for the speed and four
+times for the current (``benchmarks/bench_noise_beyond.py``). So beyond the limits σ is multiplied by
+``excess ** growth``, ``excess`` the larger of the activity's and the pairing error's ratio to their
+limits, ``growth`` the profile's ``conditions_growth`` (2: on those flights the tail then stayed within σ
+on all but one, 1.43 σ at worst), up to ``conditions_reach`` times the limits; beyond that nothing is
+judged (a stall is still named). Only where the model speed lies in the identified range: beyond it only
+a propeller that lost its load is judged, against σ as measured (rules/judged.py). The wider bands cost
+sensitivity, not false events: a departure has to be larger to be named in air rougher than the vehicle
+was identified in.
 
 A profile then sets ``noise_bands = n``: the bands are n·σ(a) of each motor, a dimensionless number that
 is the same for every vehicle. A vehicle file without the noise cannot be diagnosed with such a profile;

@@ -1,0 +1,147 @@
+"""How a vehicle's healthy deviations grow beyond the conditions its identification flight measured them
+in (issue 17; diagnosis/noise.py, "Beyond the measured conditions").
+
+    PYTHONPATH=src python benchmarks/bench_noise_beyond.py --first 0 --count 20 --jobs 2   # development
+    PYTHONPATH=src python benchmarks/bench_noise_beyond.py                                  # held out
+
+Each world (``sim.worlds.draw_world``) is identified from its own healthy 150-s flight as ``fit LOG --out
+vehicle.toml`` does; then one healthy flight per turbulence level (the benchmark's seeds,
+``evaluation.worlds.world_flights``), written as .tlog and read back, is diagnosed with the
+``flight_vehicle`` profile judging every input activity and pairing error (``conditions_reach`` at its
+maximum, no growth). Each judged sample's deviations are divided by the σ(a, e) identification measured
+(:meth:`~mav_motor_health.diagnosis.noise.BandNoise.sigmas`), and the samples beyond the flight's limits
+(``excess`` > 1, :meth:`~mav_motor_health.diagnosis.noise.BandNoise.beyond_conditions`) up to the
+profile's reach are divided again by ``excess ** g`` for a few exponents g. Printed per world and level:
+the share of healthy samples in that region, and the tail of the normalised deviations there (the 99th
+percentile of |z| / 2.576: 1 where σ is right, above 1 where the bands would be too narrow) for speed and
+current; then over all flights with enough such samples, the median and the worst tail per exponent and
+how many flights' tails exceed 1. ``conditions_growth`` is the exponent whose worst tail stays near 1.
+
+The default worlds 1000-1019 are held out: the exponent was chosen on the development worlds 0-19.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import statistics
+import sys
+import tempfile
+import time
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+
+from mav_motor_health.config import dump_vehicle_params, load_profile, load_vehicle_params  # noqa: E402
+from mav_motor_health.diagnosis.noise import band_noise_of  # noqa: E402
+from mav_motor_health.diagnosis.pipeline import diagnose  # noqa: E402
+from mav_motor_health.errors import MotorHealthError  # noqa: E402
+from mav_motor_health.evaluation.worlds import fly_world, world_flights, write_identification_log  # noqa: E402
+from mav_motor_health.identification import identify_logs  # noqa: E402
+from mav_motor_health.replay import motor_numbers  # noqa: E402
+from mav_motor_health.sim.worlds import draw_world  # noqa: E402
+from mav_motor_health.sim.writers import write_record  # noqa: E402
+from mav_motor_health.telemetry import sources  # noqa: E402
+
+EXPONENTS = (0.0, 1.0, 1.5, 2.0)
+MIN_SAMPLES = 100  # a tail on fewer samples than this is not reported
+
+
+def _tail(z: np.ndarray) -> float:
+    z = z[np.isfinite(z)]
+    return float(np.quantile(np.abs(z), 0.99) / 2.576) if z.size >= MIN_SAMPLES else float("nan")
+
+
+def one_world(
+    world: int, duration_s: float
+) -> list[tuple[str, str, float, dict[float, tuple[float, float]]]]:
+    """Per healthy flight: (world label, level, share of samples beyond the limits within the reach,
+    {exponent: (speed tail, current tail)}); empty where identification refuses the world."""
+    shipped = load_profile("flight_vehicle")
+    everywhere = dataclasses.replace(shipped, conditions_reach=100.0, conditions_growth=0.0)
+    reach = shipped.conditions_reach
+    out = []
+    with tempfile.TemporaryDirectory(prefix=f"mmh-beyond{world}-") as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        folder = Path(tmp)
+        log = write_identification_log(world, folder / "identification.tlog")
+        try:
+            identified = identify_logs([log])
+        except MotorHealthError:
+            return []
+        path = folder / "vehicle.toml"
+        path.write_text(dump_vehicle_params(identified.vehicle), encoding="utf-8")
+        vehicle = load_vehicle_params(path)
+        noise = band_noise_of(vehicle.noise)
+        label = f"{world} (own air {draw_world(world).turbulence})"
+        for flight in world_flights(world, duration_s=duration_s, healthy_flights=1, faults=()):
+            record = fly_world(world, seed=flight.seed, duration_s=duration_s, turbulence=flight.turbulence)
+            flight_log = folder / f"{flight.name}.tlog"
+            write_record(record, flight_log)
+            table = vehicle.calibrate(sources.read(flight_log))
+            params = vehicle.models(range(1, max(motor_numbers(table["motor"])) + 1))
+            d = diagnose(table, params, everywhere, noise)
+            z_speed, z_current, excess, total = [], [], [], 0
+            for motor in np.unique(d["motor"]):
+                rows = (d["motor"] == motor) & d["steady"] & (d["throttle"] >= shipped.min_command)
+                n = noise[int(motor)]
+                a = d["input_activity_v"][rows]
+                e = d["pairing_error_rad_s"][rows] if "pairing_error_rad_s" in d.names else None
+                speed, current = n.sigmas(a, e)
+                z_speed.append((d["omega_judged_rad_s"][rows] - d["omega_model_rad_s"][rows]) / speed)
+                z_current.append((d["current_judged_a"][rows] - d["current_model_a"][rows]) / current)
+                excess.append(n.beyond_conditions(shipped.range_margin, a, e))
+                total += int(np.count_nonzero(d["motor"] == motor))
+            zs, zc, x = (np.concatenate(v) for v in (z_speed, z_current, excess))
+            region = (x > 1.0) & (x <= reach)
+            tails = {
+                g: (_tail(zs[region] / x[region] ** g), _tail(zc[region] / x[region] ** g)) for g in EXPONENTS
+            }
+            out.append((label, flight.turbulence, float(np.count_nonzero(region)) / max(total, 1), tails))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--first", type=int, default=1000, help="first world seed (default 1000: held out)")
+    parser.add_argument("--count", type=int, default=20)
+    parser.add_argument("--duration-s", type=float, default=60.0, help="each healthy flight's length")
+    parser.add_argument("--jobs", type=int, default=1)
+    args = parser.parse_args(argv)
+    started = time.monotonic()
+    worlds = list(range(args.first, args.first + args.count))
+    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+        results = list(pool.map(one_world, worlds, [args.duration_s] * len(worlds)))
+    refused = [w for w, r in zip(worlds, results) if not r]
+    reach = load_profile("flight_vehicle").conditions_reach
+    print(f"beyond the identification flight's limits, up to {reach:g} x them; tail of |z| (1: sigma right)")
+    print(
+        "world                   level     share  " + "  ".join(f"g={g:<3g} speed/current" for g in EXPONENTS)
+    )
+    rows = [row for r in results for row in r]
+    for label, level, share, tails in rows:
+        cells = "  ".join(f"{s:5.2f} / {c:5.2f}      " for s, c in (tails[g] for g in EXPONENTS))
+        print(f"{label:23s} {level:9s} {100 * share:5.1f} %  {cells}")
+    print()
+    for g in EXPONENTS:
+        worst = [max((t for t in tails[g] if np.isfinite(t)), default=float("nan")) for *_, tails in rows]
+        worst = [w for w in worst if np.isfinite(w)]
+        if not worst:
+            continue
+        print(
+            f"growth {g:g}: over {len(worst)} flights with >= {MIN_SAMPLES} samples beyond, the larger tail "
+            f"median {statistics.median(worst):.2f}, worst {max(worst):.2f}; above 1 on {sum(w > 1 for w in worst)}"
+        )
+    if refused:
+        print(f"(refused by identification: {', '.join(map(str, refused))})")
+    print(f"\n(benchmark took {time.monotonic() - started:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
