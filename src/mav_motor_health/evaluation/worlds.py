@@ -50,7 +50,7 @@ from ..config import dump_vehicle_params, load_profile, load_vehicle_params
 from ..diagnosis.profile import ThresholdProfile
 from ..diagnosis.states import MotorState
 from ..errors import MotorHealthError
-from ..identification import identify_logs
+from ..identification import IdentifiedVehicle, identify_logs
 from ..model.vehicle import VehicleParams
 from ..replay import replay_log
 from ..sim.engine import SimRecord, run_scenario
@@ -68,8 +68,10 @@ __all__ = [
     "WorldEvaluation",
     "WorldFlight",
     "WorldsSummary",
+    "describe_world",
     "evaluate_world",
     "fly_world",
+    "identify_world",
     "percentile",
     "summarise",
     "world_flights",
@@ -192,6 +194,22 @@ def write_identification_log(world: int, path: str | Path, duration_s: float = 1
         warnings.simplefilter("ignore")
         write_record(run_scenario(world_scenario(world, duration_s=duration_s)), path)
     return path
+
+
+def identify_world(
+    world: int, folder: Path, fmt: str = "tlog", identification_s: float = 150.0
+) -> tuple[Path, IdentifiedVehicle, VehicleParams]:
+    """``world`` identified from its healthy identification flight written into ``folder`` as
+    ``fit LOG --out vehicle.toml`` does: the log, what identification found, and the vehicle read back
+    from the file it wrote (as ``replay --params vehicle.toml`` reads it). A world identification refuses
+    raises its :class:`~mav_motor_health.errors.MotorHealthError`."""
+    log = write_identification_log(world, folder / f"identification.{fmt}", identification_s)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        identified = identify_logs([log])
+    vehicle_file = folder / "vehicle.toml"
+    vehicle_file.write_text(dump_vehicle_params(identified.vehicle), encoding="utf-8")
+    return log, identified, load_vehicle_params(vehicle_file)
 
 
 @dataclass(frozen=True)
@@ -323,29 +341,22 @@ def evaluate_world(
             results = tuple(_replay_flight(f, folder, fmt, truth, chosen) for f in flights)
             return WorldEvaluation(
                 world,
-                _describe(the_world),
+                describe_world(the_world),
                 identified={"vehicle": "truth"},
                 flights=results,
                 seconds=time.monotonic() - started,
             )
-        log = write_identification_log(world, folder / f"identification.{fmt}", identification_s)
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                identified = identify_logs([log])
+            _, identified, vehicle = identify_world(world, folder, fmt, identification_s)
         except MotorHealthError as exc:
             return WorldEvaluation(
-                world, _describe(the_world), refused=str(exc), seconds=time.monotonic() - started
+                world, describe_world(the_world), refused=str(exc), seconds=time.monotonic() - started
             )
-        # as `fit LOG --out vehicle.toml` then `replay --params vehicle.toml`: through the file
-        vehicle_file = folder / "vehicle.toml"
-        vehicle_file.write_text(dump_vehicle_params(identified.vehicle), encoding="utf-8")
-        vehicle = load_vehicle_params(vehicle_file)
         results = tuple(_replay_flight(f, folder, fmt, vehicle, chosen) for f in flights)
     found = identified.found
     return WorldEvaluation(
         world,
-        _describe(the_world),
+        describe_world(the_world),
         identified={
             "k_e_error": found.params.k_e / the_world.motor.k_e - 1.0,
             "idle_offset_error": found.esc.idle_offset - the_world.esc.idle_offset,
@@ -356,7 +367,8 @@ def evaluate_world(
     )
 
 
-def _describe(world: World) -> str:
+def describe_world(world: World) -> str:
+    """The world in one line: mass, KV, ESC rate, current side, own air."""
     return (
         f"{world.mass_kg:.1f} kg, KV {world.kv_rpm_per_v:.0f}, ESC {world.rate_hz:.0f} Hz, "
         f"current {world.current.side}, own air {world.turbulence}"
