@@ -33,7 +33,9 @@ def test_the_floor_is_the_weakest_severity_from_which_every_stronger_flight_is_n
     assert math.isinf(WorldSeverity(0, "", (trial(0.5, 0.4), trial(1.0, None))).floor("F4.1", "ours"))
 
 
-def test_a_development_world_names_an_open_transistor_at_its_full_strength_and_the_baseline_is_fitted() -> None:
+def test_a_development_world_names_an_open_transistor_at_its_full_strength_and_the_baseline_is_fitted() -> (
+    None
+):
     # development world 4 (1.8 kg, its ESCs report the motor current): identified from its own healthy
     # flight, the PX4-style line fitted on the same flight
     result = severity_world(4, severities=(0.05, 1.0), faults=("F4.1",), duration_s=20.0, onset_s=10.0)
