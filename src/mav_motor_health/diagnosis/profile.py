@@ -223,7 +223,8 @@ class ThresholdProfile:
             raise ConfigError(
                 f"{self.conditions_reach!r}",
                 key="conditions_reach",
-                expected="a multiple 1..100 of the identified flight's busiest input and loosest pairing (1: not beyond)",
+                expected="a multiple 1..100 of the identified flight's busiest input and loosest pairing "
+                "(1: not beyond)",
             )
         if not 0 <= self.conditions_growth <= 4:
             raise ConfigError(

@@ -34,11 +34,13 @@ class Bands(Rule):
             a = np.zeros(shape) if frame.activity_v is None else frame.activity_v
             e = frame.pairing_error_rad_s
             speed, current = np.empty(shape), np.empty(shape)
-            exponent = profile.conditions_growth if profile.conditions_reach > 1 else 0.0
+            # beyond the conditions σ was measured in, where the profile judges there (noise.py)
+            reaching = profile.judges_within_noise_conditions and profile.conditions_reach > 1
+            exponent = profile.conditions_growth if reaching else 0.0
             for r, motor_noise in enumerate(noise):
                 e_r = None if e is None else e[r]
                 speed[r], current[r] = motor_noise.sigmas(a[r], e_r)
-                if exponent > 0:  # beyond the conditions σ was measured in it grows faster (noise.py)
+                if exponent > 0:
                     grow = motor_noise.growth(
                         frame.omega_model_rad_s[r], profile.range_margin, a[r], e_r, exponent
                     )
