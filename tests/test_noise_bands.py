@@ -4,6 +4,7 @@ healthy flight, carried by the vehicle file, required by a profile with ``noise_
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -419,3 +420,66 @@ def test_a_motor_faster_than_identified_and_drawing_less_than_it_needed_there_is
     frame.depth = np.zeros(rows)
     Judged(profile).judge(frame, [None] * 5)
     assert frame.steady[:, 0].tolist() == [True, False, True, False, False]
+
+
+def test_after_a_step_the_bands_widen_by_what_identification_measured_in_each_bin_of_the_wait() -> None:
+    noise = BandNoise(5.0, 0.3, after_step=(3.0, 1.5, math.nan, 1.0))
+    since = np.array([0.0, 0.1, 0.2, 0.35, 0.5, 0.6, 2.0, np.nan])
+    factor = noise.after_step_factor(since, 0.6)  # bins of 0.15 s
+    np.testing.assert_array_equal(factor, [3.0, 3.0, 1.5, np.nan, 1.0, 1.0, 1.0, 1.0])
+    # a vehicle file written before (nothing measured): every waiting sample waits
+    assert np.isnan(BandNoise(5.0, 0.3).after_step_factor(since, 0.6)[:6]).sum() == 5
+    # the vehicle file carries them
+    back = BandNoise.from_mapping(noise.as_mapping())
+    assert back is not None and back.after_step[:2] == (3.0, 1.5) and math.isnan(back.after_step[2])
+
+
+def test_identification_measures_how_much_wider_the_deviations_are_while_the_rule_waits_after_a_step() -> (
+    None
+):
+    rng = np.random.default_rng(11)
+    table = diagnosed_table(rng, {1: 6000, 2: 6000})
+    cols = {n: np.asarray(table[n]).copy() for n in table.names}
+    n = cols["time_s"].size
+    # a third of the samples wait after a step (not steady), spread over the 0.6-s wait; in its first
+    # quarter their deviations are twice as wide, later as wide as settled
+    waiting = rng.random(n) < 1 / 3
+    since = np.where(waiting, rng.uniform(0.0, 0.6, n), 5.0)
+    first = waiting & (since < 0.15)
+    for name, model in (("omega_judged_rad_s", "omega_model_rad_s"), ("current_judged_a", "current_model_a")):
+        cols[name] = np.where(first, cols[model] + 2.0 * (cols[name] - cols[model]), cols[name])
+    cols["steady"] = ~waiting
+    cols["since_step_s"] = since
+    noise = measure_band_noise(TelemetryTable(cols), settle_s=0.6)
+    ratios = noise[1].after_step
+    assert ratios[0] == pytest.approx(2.0, rel=0.2)
+    assert all(r == pytest.approx(1.0, abs=0.15) for r in ratios[1:])
+    assert noise[2].after_step == ratios  # pooled: the six motors share one type
+    # too few waiting samples in a bin: not measured there
+    few = measure_band_noise(
+        TelemetryTable({**cols, "since_step_s": np.where(waiting, 0.01, 5.0)}), settle_s=0.6
+    )
+    assert math.isfinite(few[1].after_step[0]) and all(math.isnan(r) for r in few[1].after_step[1:])
+    assert measure_band_noise(TelemetryTable(cols))[1].after_step == ()  # no wait given: nothing measured
+
+
+def test_samples_waiting_after_a_step_are_judged_where_the_vehicle_measured_them_in_wider_bands(paper_motor):
+    table = sources.read(FLIGHT)
+    profile = load_profile("flight_vehicle")
+    plain = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=3.8) for m in range(1, 7)}
+    before = diagnose(table, paper_motor, profile, plain)
+    settle = profile.steady.settle_s  # type: ignore[attr-defined]
+    since = before["since_step_s"]
+    waiting = np.isfinite(since) & (since < settle)
+    assert waiting.mean() > 0.02 and not before["steady"][waiting].any()
+    measured = {m: dataclasses.replace(n, after_step=(2.0, 1.5, math.nan, 1.0)) for m, n in plain.items()}
+    after = diagnose(table, paper_motor, profile, measured)
+    factor = measured[1].after_step_factor(since, settle)
+    judged_now = waiting & np.isfinite(factor) & (after["throttle"] >= profile.min_command)  # not at idle
+    stall = np.isin(after["state"], (MotorState.F2_1, MotorState.F4_2, MotorState.STALLED))
+    assert judged_now.sum() > 200 and after["steady"][judged_now & ~stall].all()
+    assert not after["steady"][waiting & ~np.isfinite(factor) & ~stall].any()  # the unmeasured bin waits
+    np.testing.assert_array_equal(after["steady"][~waiting], before["steady"][~waiting])
+    speed, _ = plain[1].sigmas(after["input_activity_v"])
+    m1 = (after["motor"] == 1) & judged_now
+    np.testing.assert_allclose(after["speed_band_rad_s"][m1], profile.noise_bands * (speed * factor)[m1])

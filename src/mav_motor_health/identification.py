@@ -157,7 +157,9 @@ def with_band_noise(
         calibrated = vehicle.calibrate(table)
         models = vehicle.models(range(1, max(int(m) for m in calibrated.motors()) + 1))
         diagnosed.append(diagnose(calibrated, models, profile_rules, unbounded))
-    measured = measure_band_noise(diagnosed, profile_rules.min_command)
+    # the rule's wait after a step: how much wider the deviations are while it waits (noise.py)
+    settle_s = float(getattr(profile_rules.steady, "settle_s", 0.0))
+    measured = measure_band_noise(diagnosed, profile_rules.min_command, settle_s)
     noise = {m: dict(v) for m, v in vehicle.noise.items()}
     for motor, band in measured.items():
         noise.setdefault(motor, {}).update(band.as_mapping())

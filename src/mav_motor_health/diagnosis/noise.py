@@ -51,6 +51,16 @@ a propeller that lost its load is judged, against σ as measured (rules/judged.p
 sensitivity, not false events: a departure has to be larger to be named in air rougher than the vehicle
 was identified in.
 
+**After an input step.** The balance rule waits ``settle_s`` after an input step before it judges (two
+operating points in its low-passes). On some vehicles that wait is most of a windy flight: a log whose
+commands arrive as a staircase of jumps larger than the rule's step leaves few samples settled, though
+the deviations between the jumps are no wider than settled ones. Identification measures it: the wait is
+cut into :data:`AFTER_STEP_BINS` bins, and in each, over the identification flight's waiting samples of
+all motors, how many times wider the deviations' tail is than the settled samples' in units of each
+motor's σ(a, e) (``after_step_1`` ... in ``[noise.N]``, ≥ 1; NaN where fewer than
+:data:`MIN_AFTER_STEP_SAMPLES` samples fell in the bin). Waiting samples are then judged in bands that
+many times wider; where the bin was not measured the wait holds, as for a vehicle file without them.
+
 A profile then sets ``noise_bands = n``: the bands are n·σ(a) of each motor, a dimensionless number that
 is the same for every vehicle. A vehicle file without the noise cannot be diagnosed with such a profile;
 :func:`require_noise` says which key is missing and how to get it.
@@ -60,7 +70,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -73,6 +83,9 @@ from .plausibility import CURRENT_UNTRUSTED
 
 __all__ = ["NOISE_KEYS", "BandNoise", "band_noise_of", "measure_band_noise", "require_noise"]
 
+#: the wait after an input step (the balance rule's ``settle_s``) is cut into this many bins, each with its
+#: own measured widening ("After an input step", module doc)
+AFTER_STEP_BINS = 4
 #: the keys of a vehicle file's ``[noise.N]`` that :class:`BandNoise` reads, with their units
 NOISE_KEYS = {
     "speed_rad_s": "rad/s",
@@ -89,6 +102,7 @@ NOISE_KEYS = {
     "speed_per_pairing": "rad/s per rad/s of pairing error",
     "current_a_per_pairing": "A per rad/s of pairing error",
     "pairing_error_high_rad_s": "rad/s",
+    **{f"after_step_{b + 1}": "times the settled sigma" for b in range(AFTER_STEP_BINS)},
 }
 #: the keys that may be negative (offsets from the model)
 SIGNED_NOISE_KEYS = ("speed_offset_rad_s", "current_offset_a")
@@ -104,6 +118,8 @@ TAIL_SIGMAS = 2.5758293035489
 MIN_MOTOR_SAMPLES = 200
 #: the fewest samples of an activity bin
 MIN_BIN_SAMPLES = 40
+#: a bin's widening is measured on at least this many samples (all motors pooled), else not judged
+MIN_AFTER_STEP_SAMPLES = 200
 #: at most this many activity bins
 MAX_BINS = 6
 #: the pairing error's bins start at these quantiles (its loosest samples in finer bins)
@@ -141,6 +157,10 @@ class BandNoise:
     #: the pairing error the healthy flight reached (99th percentile of its judged samples'): σ was
     #: measured up to there; NaN: not known
     pairing_error_high_rad_s: float = math.nan
+    #: after an input step, in each of :data:`AFTER_STEP_BINS` bins of the rule's wait: how many times
+    #: wider the healthy deviations' tail was than settled (≥ 1; the six motors pooled; NaN: too few
+    #: samples to say, not judged there); empty: not measured (every sample waits, as the rule says)
+    after_step: tuple[float, ...] = ()
 
     def sigmas(
         self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
@@ -180,6 +200,8 @@ class BandNoise:
         if not math.isfinite(self.pairing_error_high_rad_s):
             for key in ("speed_per_pairing", "current_a_per_pairing", "pairing_error_high_rad_s"):
                 del values[key]
+        for b, ratio in enumerate(self.after_step):
+            values[f"after_step_{b + 1}"] = ratio
         return values
 
     @classmethod
@@ -203,7 +225,28 @@ class BandNoise:
             speed_per_pairing=float(values.get("speed_per_pairing", 0.0)),
             current_a_per_pairing=float(values.get("current_a_per_pairing", 0.0)),
             pairing_error_high_rad_s=float(values.get("pairing_error_high_rad_s", math.nan)),
+            after_step=tuple(
+                float(values[f"after_step_{b + 1}"])
+                for b in range(AFTER_STEP_BINS)
+                if f"after_step_{b + 1}" in values
+            ),
         )
+
+    def after_step_factor(self, since_step_s: ArrayLike, settle_s: float) -> NDArray[np.float64]:
+        """How many times wider σ is at each sample's time since the last input step [s] (module doc,
+        "After an input step"): 1 where the wait of ``settle_s`` is over (or the time is NaN), the
+        measured widening of the sample's bin within it, NaN where that was not measured (not judged)."""
+        since = np.asarray(since_step_s, dtype=float)
+        factor = np.ones(since.shape)
+        within = np.isfinite(since) & (since < settle_s)
+        if not within.any():
+            return factor
+        if len(self.after_step) != AFTER_STEP_BINS or not settle_s > 0:
+            factor[within] = np.nan
+            return factor
+        bins = np.clip((since[within] / settle_s * AFTER_STEP_BINS).astype(int), 0, AFTER_STEP_BINS - 1)
+        factor[within] = np.asarray(self.after_step, dtype=float)[bins]
+        return factor
 
     def in_speed_range(self, omega_model_rad_s: ArrayLike, margin: float) -> NDArray[np.bool_]:
         """Where the model speed lies in the range the healthy flight covered, widened by ``margin`` (a
@@ -315,20 +358,23 @@ def _fit_growth(
 
 
 def measure_band_noise(
-    diagnosed: TelemetryTable | Sequence[TelemetryTable], min_command: float = 0.0
+    diagnosed: TelemetryTable | Sequence[TelemetryTable], min_command: float = 0.0, settle_s: float = 0.0
 ) -> dict[int, BandNoise]:
     """Each motor's band noise from diagnosed healthy flights (:func:`~.pipeline.diagnose` output of the
     flight rule): its judged samples (steady, commanded above ``min_command``, no sensor issue) and their
     deviations from the model. Motors with fewer than :data:`MIN_MOTOR_SAMPLES` judged samples take the
-    vehicle's (all motors pooled); none at all if the vehicle has fewer."""
+    vehicle's (all motors pooled); none at all if the vehicle has fewer. With the rule's ``settle_s`` (> 0)
+    and its ``since_step_s`` column, also how much wider the deviations are while it waits after a step
+    (:attr:`BandNoise.after_step`)."""
     tables = [diagnosed] if isinstance(diagnosed, TelemetryTable) else list(diagnosed)
 
     def column(name: str, dtype: type = float) -> NDArray:
         return np.concatenate([np.asarray(d[name], dtype=dtype) for d in tables]) if tables else np.zeros(0)
 
-    judged = column("steady", bool)
+    steady = column("steady", bool)
+    usable = np.ones(steady.shape, dtype=bool)  # commanded above idle, a deviation to measure
     if min_command > 0 and all("throttle" in d.names for d in tables):
-        judged &= column("throttle") >= min_command
+        usable &= column("throttle") >= min_command
     dw = column("omega_judged_rad_s") - column("omega_model_rad_s")
     di = column("current_judged_a") - column("current_model_a")
     current = column("current_a")
@@ -340,8 +386,10 @@ def measure_band_noise(
         if all("pairing_error_rad_s" in d.names for d in tables)
         else None
     )
-    judged &= np.isfinite(dw)
-    current_ok = judged & np.isfinite(di) & ((column("sensor_flags", np.int64) & CURRENT_UNTRUSTED) == 0)
+    usable &= np.isfinite(dw)
+    judged = steady & usable
+    current_flags_ok = (column("sensor_flags", np.int64) & CURRENT_UNTRUSTED) == 0
+    current_ok = judged & np.isfinite(di) & current_flags_ok
     motors = column("motor", np.int64)
 
     def noise_of(speed_rows: NDArray[np.bool_], current_rows: NDArray[np.bool_]) -> BandNoise:
@@ -387,7 +435,68 @@ def measure_band_noise(
             out[int(motor)] = noise_of(judged & own, current_ok & own)
         else:
             out[int(motor)] = pooled
+    if settle_s > 0 and all("since_step_s" in d.names for d in tables):
+        since = column("since_step_s")
+        waiting = usable & ~steady & np.isfinite(since) & (since < settle_s)
+        after = _after_step(
+            out,
+            motors,
+            dw,
+            di,
+            activity,
+            pairing,
+            judged,
+            current_ok,
+            waiting,
+            current_flags_ok,
+            since,
+            settle_s,
+        )
+        out = {m: replace(n, after_step=after) for m, n in out.items()}
     return out
+
+
+def _after_step(
+    noise: Mapping[int, BandNoise],
+    motors: NDArray[np.int64],
+    dw: NDArray[np.float64],
+    di: NDArray[np.float64],
+    activity: NDArray[np.float64],
+    pairing: NDArray[np.float64] | None,
+    settled: NDArray[np.bool_],
+    settled_current: NDArray[np.bool_],
+    waiting: NDArray[np.bool_],
+    current_flags_ok: NDArray[np.bool_],
+    since: NDArray[np.float64],
+    settle_s: float,
+) -> tuple[float, ...]:
+    """Per bin of the wait after a step, how many times wider the deviations' tail is than settled, in
+    units of each motor's σ(a, e) around its offset, speed or current whichever widened more (≥ 1; NaN:
+    fewer than :data:`MIN_AFTER_STEP_SAMPLES` samples, all motors pooled)."""
+    z_speed, z_current = np.full(dw.shape, np.nan), np.full(dw.shape, np.nan)
+    for motor, n in noise.items():
+        own = motors == motor
+        speed, current = n.sigmas(activity[own], None if pairing is None else pairing[own])
+        z_speed[own] = (dw[own] - n.speed_offset_rad_s) / speed
+        z_current[own] = (di[own] - n.current_offset_a) / current
+    current_waiting = waiting & current_flags_ok & np.isfinite(z_current)
+    reference = (
+        _tail_sigma(z_speed[settled]),
+        _tail_sigma(z_current[settled_current]) if settled_current.any() else math.nan,
+    )
+    bins = np.clip((np.nan_to_num(since) / settle_s * AFTER_STEP_BINS).astype(int), 0, AFTER_STEP_BINS - 1)
+    ratios = []
+    for b in range(AFTER_STEP_BINS):
+        in_bin = waiting & (bins == b)
+        if np.count_nonzero(in_bin) < MIN_AFTER_STEP_SAMPLES:
+            ratios.append(math.nan)
+            continue
+        widening = _tail_sigma(z_speed[in_bin]) / reference[0]
+        current_bin = current_waiting & (bins == b)
+        if np.count_nonzero(current_bin) >= MIN_AFTER_STEP_SAMPLES and reference[1] > 0:
+            widening = max(widening, _tail_sigma(z_current[current_bin]) / reference[1])
+        ratios.append(max(1.0, float(widening)))
+    return tuple(ratios)
 
 
 def band_noise_of(noise: Mapping[int, Mapping[str, float]]) -> dict[int, BandNoise]:

@@ -245,6 +245,7 @@ def _result_columns(frame: Frame) -> dict[str, NDArray]:
         "slow_ready": np.zeros(shape, dtype=bool) if slow is None else slow.ready,
         "pairing_error_rad_s": nan_unless(frame.pairing_error_rad_s),
         "detection_level": nan_unless(frame.detection_level),
+        "since_step_s": nan_unless(frame.since_step_s),
     }
 
 
@@ -268,6 +269,7 @@ _RESULT_COLUMNS = (
     "slow_ready",
     "pairing_error_rad_s",
     "detection_level",
+    "since_step_s",
 )
 
 
@@ -333,6 +335,7 @@ def diagnose(
         "slow_ready": np.zeros(n, dtype=bool),
         "pairing_error_rad_s": np.full(n, np.nan),
         "detection_level": np.full(n, np.nan),
+        "since_step_s": np.full(n, np.nan),
     }
     motors = ordered["motor"]
     # each sample's pairing with its command (a log's column, telemetry/assemble.py); a table without
@@ -433,6 +436,7 @@ def diagnose(
         slow_ready=out["slow_ready"],
         pairing_error_rad_s=out["pairing_error_rad_s"],
         detection_level=out["detection_level"],
+        since_step_s=out["since_step_s"],
         vehicle_fit=vehicle_fit,
     )
     for name in ordered.names:

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from ..model.dynamics import last_of, previous
 
-__all__ = ["SteadyCarry", "steady_mask", "steady_mask_rows", "warm_mask", "warm_mask_rows"]
+__all__ = ["SteadyCarry", "settling_rows", "steady_mask", "steady_mask_rows", "warm_mask", "warm_mask_rows"]
 
 
 class Settling(Protocol):
@@ -136,6 +136,36 @@ def warm_mask_rows(
     """:func:`warm_mask` of several motors at once: rows of samples (2-D), one carry per row;
     ``lengths`` each row's number of samples (None: all; the rest is padding after them). With
     ``also_settle_s`` the result is (2, rows, samples)."""
+    warm, news, _ = settling_rows(
+        time_s,
+        voltage_v,
+        settle_s,
+        max_gap_s,
+        step_v,
+        carries,
+        lengths,
+        start_settle_s,
+        restart,
+        also_settle_s,
+    )
+    return warm, news
+
+
+def settling_rows(
+    time_s: NDArray[np.float64],
+    voltage_v: NDArray[np.float64],
+    settle_s: float,
+    max_gap_s: float,
+    step_v: NDArray[np.float64] | float,
+    carries: list[SteadyCarry],
+    lengths: list[int] | None = None,
+    start_settle_s: NDArray[np.float64] | float = 0.0,
+    restart: NDArray[np.bool_] | None = None,
+    also_settle_s: float | None = None,
+) -> tuple[NDArray[np.bool_], list[SteadyCarry], NDArray[np.float64]]:
+    """:func:`warm_mask_rows`, and the time since the last step [s] of each sample whose stream has
+    settled since it began (NaN where it has not): a sample it is below ``settle_s`` for waits for a
+    step's transient to leave the low-passes."""
     t, v = time_s, voltage_v
     rows, n = t.shape
     counts = [n] * rows if lengths is None else lengths
@@ -153,7 +183,9 @@ def warm_mask_rows(
     last_step = np.maximum.accumulate(
         np.concatenate([carried_step, np.where(step, t, -np.inf)], axis=1), axis=1
     )[:, 1:]
-    warm = (t - last_step >= settle_s) & (t - last_start >= np.maximum(settle_s, start_settle_s))
+    stream_warm = t - last_start >= np.maximum(settle_s, start_settle_s)
+    warm = (t - last_step >= settle_s) & stream_warm
+    since_step = np.where(stream_warm, t - last_step, np.nan)
     if also_settle_s is not None:  # a second, longer wait after the same steps and starts
         also = (t - last_step >= also_settle_s) & (
             t - last_start >= np.maximum(also_settle_s, start_settle_s)
@@ -179,4 +211,4 @@ def warm_mask_rows(
                 last_start_time_s=start_s,
             )
         )
-    return warm, news
+    return warm, news, since_step

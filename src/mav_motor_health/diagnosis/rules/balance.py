@@ -27,7 +27,7 @@ from ...errors import ConfigError
 from ...model.balance import BalanceCarry, balance_deviations_rows
 from ...model.dynamics import ResponseCarry, first_order_responses
 from ..stall import StallCarry, stall_mean_rows
-from ..steady import SteadyCarry, warm_mask_rows
+from ..steady import SteadyCarry, settling_rows
 from .base import CompareRule, Frame, SlowAverages
 from .step import check_settling
 
@@ -143,7 +143,7 @@ class BalanceRule(CompareRule):
                 bus_v = np.where(cmd > 0.05, v / cmd, np.nan)  # the input is command × bus voltage
             at_idle = bal.voltage_v < profile.min_command * bus_v
         slow_on = self.slow_factor > 0
-        warm, settled = warm_mask_rows(
+        warm, settled, since_step = settling_rows(
             t,
             v,
             self.settle_s,
@@ -159,6 +159,16 @@ class BalanceRule(CompareRule):
         if slow_on:
             warm, slow_warm = warm[0], warm[1]
         steady = warm & np.isfinite(v) & np.isfinite(omega_in)
+        since_step = np.where(np.isfinite(v) & np.isfinite(omega_in), since_step, np.nan)
+        if frame.noise is not None and profile.noise_bands > 0:
+            # waiting after a step, judged where the vehicle's noise says how much wider it is there
+            # (identification measured it: noise.py, "After an input step"); elsewhere the wait holds
+            after = np.stack(
+                [n.after_step_factor(since_step[r], self.settle_s) for r, n in enumerate(frame.noise)]
+            )
+            with np.errstate(invalid="ignore"):
+                steady = steady | (np.isfinite(after) & (since_step < self.settle_s))
+            frame.after_step_factor = after
         slow_carries = [c.slow_omega for c in carries] + [c.slow_current for c in carries]
         if slow_on:
             # The slow look: the deviations averaged slow_factor times longer, judged as long after a step
@@ -178,6 +188,7 @@ class BalanceRule(CompareRule):
         frame.omega_model_rad_s, frame.current_model_a = omega_pred, current_pred
         frame.omega_judged_rad_s, frame.current_judged_a = omega_seen, current_seen
         frame.steady = steady
+        frame.since_step_s = since_step
         frame.judged_voltage_v = bal.voltage_v
         frame.activity_v = bal.activity_v
         frame.omega_expected_rad_s = omega_pred

@@ -37,6 +37,8 @@ class Bands(Rule):
             # beyond the conditions σ was measured in, where the profile judges there (noise.py)
             reaching = profile.judges_within_noise_conditions and profile.conditions_reach > 1
             exponent = profile.conditions_growth if reaching else 0.0
+            # after an input step, wider by what identification measured there (rules/balance.py)
+            after = frame.after_step_factor
             for r, motor_noise in enumerate(noise):
                 e_r = None if e is None else e[r]
                 speed[r], current[r] = motor_noise.sigmas(a[r], e_r)
@@ -46,6 +48,10 @@ class Bands(Rule):
                     )
                     speed[r] *= grow
                     current[r] *= grow
+                if after is not None:
+                    widen = np.where(np.isfinite(after[r]), after[r], 1.0)
+                    speed[r] *= widen
+                    current[r] *= widen
             frame.speed_band_rad_s = profile.noise_bands * speed
             frame.current_band_a = profile.noise_bands * current
             frame.current_band_below_a = frame.current_band_a.copy()

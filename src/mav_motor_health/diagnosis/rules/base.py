@@ -87,6 +87,12 @@ class Frame:
     omega_judged_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
     current_judged_a: NDArray[np.float64] = None  # type: ignore[assignment]
     steady: NDArray[np.bool_] = None  # type: ignore[assignment]
+    #: the time since the last input step of each sample whose stream has settled [s] (balance rule; NaN:
+    #: its stream has not): below the rule's ``settle_s`` the sample waits for the step's transient
+    since_step_s: NDArray[np.float64] | None = None
+    #: how many times wider the bands are for the sample's time since a step (vehicle noise, noise.py):
+    #: 1 once settled, NaN while waiting where the vehicle's noise does not say (not judged); None: none
+    after_step_factor: NDArray[np.float64] | None = None
     #: the input voltage the bands and the tree are read at
     judged_voltage_v: NDArray[np.float64] = None  # type: ignore[assignment]
     #: the speed the motor is expected to turn at (tree rule 1)
