@@ -79,7 +79,10 @@ def test_the_measured_noise_recovers_a_known_spread_and_its_growth_with_activity
 
 
 def test_a_vehicle_file_carries_the_band_noise_and_reads_it_back(tmp_path: Path) -> None:
-    noise = {1: BandNoise(4.2, 0.31, 12.5, 0.8, 900), 2: BandNoise(3.9, float("nan"), 10.0, 0.0, 850)}
+    noise = {
+        1: BandNoise(4.2, 0.31, 12.5, 0.8, 900, after_step=(2.5, 1.25, 1.0, 1.0)),
+        2: BandNoise(3.9, float("nan"), 10.0, 0.0, 850),
+    }
     vehicle = VehicleParams(
         motor=load_motor_params("paper_x2212"), noise={m: n.as_mapping() for m, n in noise.items()}
     )
