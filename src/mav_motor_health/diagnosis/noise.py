@@ -104,6 +104,8 @@ NOISE_KEYS = {
     "pairing_error_high_rad_s": "rad/s",
     **{f"after_step_{b + 1}": "times the settled sigma" for b in range(AFTER_STEP_BINS)},
 }
+#: the after-step keys in bin order
+AFTER_STEP_KEYS = tuple(f"after_step_{b + 1}" for b in range(AFTER_STEP_BINS))
 #: the keys that may be negative (offsets from the model)
 SIGNED_NOISE_KEYS = ("speed_offset_rad_s", "current_offset_a")
 #: the identified speed range: these shares of the judged samples' model speeds lie inside it
@@ -200,8 +202,7 @@ class BandNoise:
         if not math.isfinite(self.pairing_error_high_rad_s):
             for key in ("speed_per_pairing", "current_a_per_pairing", "pairing_error_high_rad_s"):
                 del values[key]
-        for b, ratio in enumerate(self.after_step):
-            values[f"after_step_{b + 1}"] = ratio
+        values.update(zip(AFTER_STEP_KEYS, self.after_step))
         return values
 
     @classmethod
@@ -225,11 +226,10 @@ class BandNoise:
             speed_per_pairing=float(values.get("speed_per_pairing", 0.0)),
             current_a_per_pairing=float(values.get("current_a_per_pairing", 0.0)),
             pairing_error_high_rad_s=float(values.get("pairing_error_high_rad_s", math.nan)),
-            after_step=tuple(
-                float(values[f"after_step_{b + 1}"])
-                for b in range(AFTER_STEP_BINS)
-                if f"after_step_{b + 1}" in values
-            ),
+            # a bin not measured is NaN, which a vehicle file leaves out; none at all: not measured
+            after_step=tuple(float(values.get(key, math.nan)) for key in AFTER_STEP_KEYS)
+            if any(key in values for key in AFTER_STEP_KEYS)
+            else (),
         )
 
     def after_step_factor(self, since_step_s: ArrayLike, settle_s: float) -> NDArray[np.float64]:
@@ -452,7 +452,8 @@ def measure_band_noise(
             since,
             settle_s,
         )
-        out = {m: replace(n, after_step=after) for m, n in out.items()}
+        if any(math.isfinite(r) for r in after):  # no bin measured: as not measured at all
+            out = {m: replace(n, after_step=after) for m, n in out.items()}
     return out
 
 

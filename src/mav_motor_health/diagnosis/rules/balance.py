@@ -3,9 +3,11 @@
 The model's electrical and mechanical equations are checked as balances at every sample, low-passed with
 ``residual_tau_s``, and turned into the speed and current deviations they imply in steady state
 (:mod:`...model.balance`, the equations); a sample is judged once the low-passes have had ``settle_s`` of
-samples without a gap longer than the persistence rule's ``max_gap_s``. ``activity_tau_s`` is the window
-of the input activity that widens the bands (the profile's ``activity_band``) and, with ``activity_ref_v``
-> 0, lengthens the low-pass to ``residual_tau_s·activity/activity_ref_v`` (at most
+samples without a gap longer than the persistence rule's ``max_gap_s``; while it waits after a step,
+a sample is judged all the same where the vehicle's noise says how much wider the deviations are then
+(identification measured it: :mod:`..noise`, "After an input step"), in bands that much wider.
+``activity_tau_s`` is the window of the input activity that widens the bands (the profile's
+``activity_band``) and, with ``activity_ref_v`` > 0, lengthens the low-pass to ``residual_tau_s·activity/activity_ref_v`` (at most
 ``residual_tau_max_s``). ``slow_factor`` > 0 (≥ 1) adds a slow look: the deviations low-passed again with
 ``slow_factor`` times that time constant, judged ``slow_factor`` × ``settle_s`` after a step, against the
 bands narrowed to the profile's ``slow_band_fraction`` (:class:`..slow_look.SlowAveragesRule`).
@@ -160,7 +162,7 @@ class BalanceRule(CompareRule):
             warm, slow_warm = warm[0], warm[1]
         steady = warm & np.isfinite(v) & np.isfinite(omega_in)
         since_step = np.where(np.isfinite(v) & np.isfinite(omega_in), since_step, np.nan)
-        if frame.noise is not None and profile.noise_bands > 0:
+        if frame.noise is not None and len(frame.noise) == rows and profile.noise_bands > 0:
             # waiting after a step, judged where the vehicle's noise says how much wider it is there
             # (identification measured it: noise.py, "After an input step"); elsewhere the wait holds
             after = np.stack(
