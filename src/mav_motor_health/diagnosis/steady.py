@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from ..model.dynamics import last_of, previous
 
-__all__ = ["SteadyCarry", "settling_rows", "steady_mask", "steady_mask_rows", "warm_mask", "warm_mask_rows"]
+__all__ = ["SteadyCarry", "settling_rows", "steady_mask", "steady_mask_rows", "warm_mask"]
 
 
 class Settling(Protocol):
@@ -107,7 +107,7 @@ def warm_mask(
     def row(x: NDArray | float | None) -> NDArray | float | None:
         return x if x is None or np.ndim(x) == 0 else np.asarray(x).reshape(1, -1)
 
-    warm, (new,) = warm_mask_rows(
+    warm, (new,), _ = settling_rows(
         t.reshape(1, -1),
         np.asarray(voltage_v, dtype=float).reshape(1, -1),
         settle_s,
@@ -119,36 +119,6 @@ def warm_mask(
         also_settle_s=also_settle_s,
     )
     return warm[..., 0, :], new
-
-
-def warm_mask_rows(
-    time_s: NDArray[np.float64],
-    voltage_v: NDArray[np.float64],
-    settle_s: float,
-    max_gap_s: float,
-    step_v: NDArray[np.float64] | float,
-    carries: list[SteadyCarry],
-    lengths: list[int] | None = None,
-    start_settle_s: NDArray[np.float64] | float = 0.0,
-    restart: NDArray[np.bool_] | None = None,
-    also_settle_s: float | None = None,
-) -> tuple[NDArray[np.bool_], list[SteadyCarry]]:
-    """:func:`warm_mask` of several motors at once: rows of samples (2-D), one carry per row;
-    ``lengths`` each row's number of samples (None: all; the rest is padding after them). With
-    ``also_settle_s`` the result is (2, rows, samples)."""
-    warm, news, _ = settling_rows(
-        time_s,
-        voltage_v,
-        settle_s,
-        max_gap_s,
-        step_v,
-        carries,
-        lengths,
-        start_settle_s,
-        restart,
-        also_settle_s,
-    )
-    return warm, news
 
 
 def settling_rows(
@@ -163,9 +133,11 @@ def settling_rows(
     restart: NDArray[np.bool_] | None = None,
     also_settle_s: float | None = None,
 ) -> tuple[NDArray[np.bool_], list[SteadyCarry], NDArray[np.float64]]:
-    """:func:`warm_mask_rows`, and the time since the last step [s] of each sample whose stream has
-    settled since it began (NaN where it has not): a sample it is below ``settle_s`` for waits for a
-    step's transient to leave the low-passes."""
+    """:func:`warm_mask` of several motors at once: rows of samples (2-D), one carry per row;
+    ``lengths`` each row's number of samples (None: all; the rest is padding after them). With
+    ``also_settle_s`` the mask is (2, rows, samples). Also the time since the last step [s] of each
+    sample whose stream has settled since it began (NaN where it has not): a sample it is below
+    ``settle_s`` for waits for a step's transient to leave the low-passes."""
     t, v = time_s, voltage_v
     rows, n = t.shape
     counts = [n] * rows if lengths is None else lengths
