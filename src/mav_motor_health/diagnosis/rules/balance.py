@@ -7,10 +7,11 @@ samples without a gap longer than the persistence rule's ``max_gap_s``; while it
 a sample is judged all the same where the vehicle's noise says how much wider the deviations are then
 (identification measured it: :mod:`..noise`, "After an input step"), in bands that much wider.
 ``activity_tau_s`` is the window of the input activity that widens the bands (the profile's
-``activity_band``) and, with ``activity_ref_v`` > 0, lengthens the low-pass to ``residual_tau_s·activity/activity_ref_v`` (at most
-``residual_tau_max_s``). ``slow_factor`` > 0 (≥ 1) adds a slow look: the deviations low-passed again with
-``slow_factor`` times that time constant, judged ``slow_factor`` × ``settle_s`` after a step, against the
-bands narrowed to the profile's ``slow_band_fraction`` (:class:`..slow_look.SlowAveragesRule`).
+``activity_band``) and, with ``activity_ref_v`` > 0, lengthens the low-pass to
+``residual_tau_s·activity/activity_ref_v`` (at most ``residual_tau_max_s``). ``slow_factor`` > 0 (≥ 1)
+adds a slow look: the deviations low-passed again with ``slow_factor`` times that time constant, judged
+``slow_factor`` × ``settle_s`` after a step, against the bands narrowed to the profile's
+``slow_band_fraction`` (:class:`..slow_look.SlowAveragesRule`).
 
 ``bus_ref_v`` > 0: ``step_v`` and ``activity_ref_v`` are volts at this bus voltage and scale with the
 vehicle's (a step of 0.8 V at 11.1 V is one of 2.4 V at 33.3 V: the same command change); 0: volts as
