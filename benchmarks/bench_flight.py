@@ -37,7 +37,7 @@ from mav_motor_health.evaluation.campaign import (
     benchmark_fault_cases,
     run_flights,
 )
-from mav_motor_health.evaluation.px4_baseline import Px4Baseline, detect, fit_baseline
+from mav_motor_health.evaluation.px4_baseline import Px4Baseline, fit_baseline, motor_series, table_flags
 from mav_motor_health.evaluation.score import PAPER, score
 
 SEVERITIES = (0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0)
@@ -52,11 +52,7 @@ def baseline_flags(
     detector: Px4Baseline, flight: LabelledFlight
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     t = flight.table
-    flags = np.zeros(len(t), dtype=np.int8)
-    for motor in t.motors():
-        sel = np.flatnonzero(t["motor"] == motor)
-        flags[sel] = detect(detector, t["time_s"][sel], t["throttle"][sel], t["esc_current_a"][sel])
-    return flags, t["motor"], t["time_s"]
+    return table_flags(detector, t), t["motor"], t["time_s"]
 
 
 def baseline_score(detector: Px4Baseline, flight: LabelledFlight) -> tuple[float | None, int, str]:
@@ -139,17 +135,7 @@ def main() -> int:
 
     # 3. smallest detectable severity, ours vs the PX4-style baseline, calm flights
     train = [f for f in run_flights([c for c in campaign_cases() if c.fault is None], args.jobs)]
-    detector = fit_baseline(
-        [
-            (
-                f.table.for_motor(m)["time_s"],
-                f.table.for_motor(m)["throttle"],
-                f.table.for_motor(m)["esc_current_a"],
-            )
-            for f in train
-            for m in f.table.motors()
-        ]
-    )
+    detector = fit_baseline(motor_series([f.table for f in train]))
     sweep = [
         FlightCase(
             "calm", 4000 + 10 * j + k, 40.0, fault=fault, motor=1 + (j + k) % 6, onset_s=15.0, severity=sev

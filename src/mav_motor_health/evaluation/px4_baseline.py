@@ -20,8 +20,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..model.dynamics import ResponseCarry, first_order_response
+from ..telemetry.table import TelemetryTable
 
-__all__ = ["Px4Baseline", "detect", "fit_baseline", "fit_current_line"]
+__all__ = ["Px4Baseline", "detect", "fit_baseline", "fit_current_line", "motor_series", "table_flags"]
 
 UNDER, OK, OVER = -1, 0, 1
 
@@ -110,3 +111,24 @@ def fit_baseline(
     return Px4Baseline(
         c2t, idle, margin * max(low, 1e-3), margin * max(high, 1e-3), tau_s, hold_s, min_throttle
     )
+
+
+def motor_series(tables: Sequence[TelemetryTable]) -> list[tuple[NDArray, NDArray, NDArray]]:
+    """Each motor's (time, throttle, ESC current) of each table: the series :func:`fit_baseline` takes."""
+    series = []
+    for table in tables:
+        for motor in table.motors():
+            rows = table.for_motor(motor)
+            series.append((rows["time_s"], rows["throttle"], rows["esc_current_a"]))
+    return series
+
+
+def table_flags(detector: Px4Baseline, table: TelemetryTable) -> NDArray[np.int8]:
+    """:func:`detect` on every motor of a telemetry table: one flag per row of the table."""
+    flags = np.zeros(len(table), dtype=np.int8)
+    for motor in table.motors():
+        sel = np.flatnonzero(table["motor"] == motor)
+        flags[sel] = detect(
+            detector, table["time_s"][sel], table["throttle"][sel], table["esc_current_a"][sel]
+        )
+    return flags

@@ -44,7 +44,7 @@ from ..sim.worlds import draw_world
 from ..sim.writers import truth_path, write_record
 from ..telemetry import sources
 from ..telemetry.table import TelemetryTable
-from .px4_baseline import Px4Baseline, detect, fit_baseline
+from .px4_baseline import Px4Baseline, fit_baseline, motor_series, table_flags
 from .score import read_diagnosis, read_truth, score
 from .worlds import MAX_FLIGHTS_PER_WORLD, describe_world, fly_world, identify_world
 
@@ -118,33 +118,15 @@ def baseline_events(
 ) -> tuple[float | None, int]:
     """The baseline on one flight's table: the time from ``onset_s`` to its first flag on ``motor`` (None:
     none), and its false events (flags rising on the other motors, or on ``motor`` before onset)."""
-    detection, false = None, 0
+    flags = table_flags(detector, table) != 0
+    motors, t = np.asarray(table["motor"]), np.asarray(table["time_s"], dtype=float)
+    false = 0
     for m in table.motors():
-        rows = table.for_motor(m)
-        t = np.asarray(rows["time_s"], dtype=float)
-        flags = detect(detector, t, rows["throttle"], rows["esc_current_a"]) != 0
-        healthy = np.ones(t.size, dtype=bool) if int(m) != motor else t < onset_s
-        on = flags & healthy
+        rows = motors == m
+        on = flags[rows] & ((t[rows] < onset_s) if int(m) == motor else True)
         false += int(np.count_nonzero(on[1:] & ~on[:-1])) + int(on[:1].sum())
-        if int(m) == motor:
-            hit = np.flatnonzero(flags & (t >= onset_s))
-            detection = float(t[hit[0]] - onset_s) if hit.size else None
-    return detection, false
-
-
-def _fit_on(table: TelemetryTable) -> Px4Baseline:
-    """The baseline fitted on a healthy flight's table, every motor (raises ValueError where the ESCs
-    report no usable current)."""
-    return fit_baseline(
-        [
-            (
-                np.asarray(table.for_motor(m)["time_s"], dtype=float),
-                np.asarray(table.for_motor(m)["throttle"], dtype=float),
-                np.asarray(table.for_motor(m)["esc_current_a"], dtype=float),
-            )
-            for m in table.motors()
-        ]
-    )
+    hit = np.flatnonzero(flags & (motors == motor) & (t >= onset_s))
+    return (float(t[hit[0]] - onset_s) if hit.size else None), false
 
 
 def severity_world(
@@ -161,7 +143,10 @@ def severity_world(
     docstring)."""
     if not 0 < onset_s < duration_s:
         raise ValueError(f"onset_s must lie inside the flight (0 < {onset_s} < {duration_s})")
-    if len(faults) * len(severities) > MAX_FLIGHTS_PER_WORLD - _SEED_INDEX:
+    unknown = [f for f in faults if f not in SEVERITY_FAULTS]
+    if unknown:
+        raise ValueError(f"faults {unknown}: expected some of {SEVERITY_FAULTS}")
+    if len(SEVERITY_FAULTS) * len(severities) > MAX_FLIGHTS_PER_WORLD - _SEED_INDEX:
         raise ValueError(f"at most {MAX_FLIGHTS_PER_WORLD - _SEED_INDEX} ladder flights per world")
     started = time.monotonic()
     the_world = draw_world(world)
@@ -180,11 +165,13 @@ def severity_world(
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                detector = _fit_on(sources.read(log))
+                detector = fit_baseline(motor_series([sources.read(log)]))
         except ValueError as exc:
             why = f"no current line: {exc}"
         trials = []
-        for j, fault in enumerate(faults):
+        for fault in faults:
+            # the full ladder's seed, whatever subset is asked for (as world_flights keeps its flights)
+            j = SEVERITY_FAULTS.index(fault)
             for k, severity in enumerate(severities):
                 seed = (world + 1) * MAX_FLIGHTS_PER_WORLD + _SEED_INDEX + j * len(severities) + k
                 spec = FaultSpec(kind=fault, motor=motors[fault], onset_s=onset_s, severity=float(severity))
