@@ -129,8 +129,12 @@ def print_world(e: WorldEvaluation) -> None:
         print(
             f"  {level:8s} acc % {acc} | det s {det} | NORMAL {_pct(e.normal_share(level))} % "
             f"judged {_pct(e.judged_share(level))} % | false {e.false_events(level)} "
-            f"in {60 * e.healthy_hours(level):.0f} min"
+            f"in {60 * e.healthy_hours(level):.0f} min{_states(e.false_events_by_state(level))}"
         )
+
+
+def _states(counts: dict[str, int]) -> str:
+    return " (" + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())) + ")" if counts else ""
 
 
 def print_summary(s: WorldsSummary, faults: bool = True) -> None:
@@ -192,6 +196,8 @@ def print_healthy(s: WorldsSummary) -> None:
         f"{100 * s.false_events_per_hour:.1f} per 100 flight hours (goal <= {GOAL_FALSE_PER_100_H:g}, "
         f"over >= {GOAL_HEALTHY_HOURS:g} healthy hours)"
     )
+    if s.false_events_by_state:
+        print("  by state announced: " + ", ".join(f"{k} {v}" for k, v in s.false_events_by_state.items()))
     print(f"  (and {s.fault_flight_false_events} on healthy motors of the fault flights, or before onset)")
 
 

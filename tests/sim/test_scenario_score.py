@@ -70,6 +70,7 @@ def test_score_counts_accuracy_detection_and_false_events():
     assert s.fault_accuracy_pct == pytest.approx(100 * (1 - 8 / 400), abs=0.3)  # 0.2 s of 10 s missed
     assert s.normal_accuracy_pct == pytest.approx(100 * (1 - 1 / 400), abs=0.01)
     assert s.false_events == 1 and s.false_events_per_hour == pytest.approx(180.0)
+    assert s.false_events_by_state == {"F3.1": 1}
     text = format_score(s, truth)
     assert "paper: 0.43 s" in text
 

@@ -25,7 +25,7 @@ import csv
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +67,8 @@ class Score:
     false_events_per_hour: float
     hours: float
     samples: int
+    #: the false events by the state announced (label: count), e.g. ``{"F2.1": 2}``
+    false_events_by_state: dict[str, int] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -172,12 +174,16 @@ def score(diagnosis: Mapping[str, NDArray[Any]], truth: Mapping[str, Any]) -> Sc
             accuracy_pct(diagnosis["omega_rad_s"][healthy], diagnosis["omega_model_rad_s"][healthy])
             + accuracy_pct(diagnosis["current_a"][healthy], diagnosis["current_model_a"][healthy])
         )
-    false_events = 0
+    by_state: dict[str, int] = {}
     for m in np.unique(motor):
         sel = np.flatnonzero((motor == m) & healthy)
         a = announced[sel]
         is_fault = np.isin(a, _FAULT_CODES)
-        false_events += int(np.sum(is_fault[1:] & (a[1:] != a[:-1]))) + int(is_fault[:1].sum())
+        starts = np.flatnonzero(np.concatenate([is_fault[:1], is_fault[1:] & (a[1:] != a[:-1])]))
+        for code in a[starts].tolist():
+            label = MotorState(int(code)).label
+            by_state[label] = by_state.get(label, 0) + 1
+    false_events = sum(by_state.values())
     return Score(
         fault=None if f is None else str(f["fault"]),
         motor=None if f is None else int(f["motor"]),
@@ -192,6 +198,7 @@ def score(diagnosis: Mapping[str, NDArray[Any]], truth: Mapping[str, Any]) -> Sc
         false_events_per_hour=false_events / hours if hours > 0 else float("nan"),
         hours=hours,
         samples=int(t.size),
+        false_events_by_state=dict(sorted(by_state.items())),
     )
 
 

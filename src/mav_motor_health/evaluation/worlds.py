@@ -299,6 +299,14 @@ class WorldEvaluation:
         """Fault announcements in the healthy flights (any fault state, UNKNOWN, SLOW/STALLED/FAST)."""
         return sum(r.score.false_events for r in self.healthy_flights(turbulence))
 
+    def false_events_by_state(self, turbulence: str | None = None) -> dict[str, int]:
+        """:meth:`false_events` by the state announced (label: count)."""
+        counts: dict[str, int] = {}
+        for r in self.healthy_flights(turbulence):
+            for label, n in r.score.false_events_by_state.items():
+                counts[label] = counts.get(label, 0) + n
+        return counts
+
     def healthy_hours(self, turbulence: str | None = None) -> float:
         return sum(r.score.hours for r in self.healthy_flights(turbulence))
 
@@ -474,11 +482,21 @@ class WorldsSummary:
     false_events: Mapping[str, int]
     healthy_hours: Mapping[str, float]
     fault_flight_false_events: int
+    #: the healthy flights' false events by the state announced (label: count), all levels
+    false_events_by_state: Mapping[str, int] = field(default_factory=dict)
 
     @property
     def false_events_per_hour(self) -> float:
         hours = sum(self.healthy_hours.values())
         return sum(self.false_events.values()) / hours if hours > 0 else math.nan
+
+
+def _add_counts(counts: Iterable[Mapping[str, int]]) -> dict[str, int]:
+    total: dict[str, int] = {}
+    for each in counts:
+        for label, n in each.items():
+            total[label] = total.get(label, 0) + n
+    return dict(sorted(total.items()))
 
 
 def summarise(
@@ -528,4 +546,5 @@ def summarise(
         false_events={level: sum(e.false_events(level) for e in done) for level in levels},
         healthy_hours={level: sum(e.healthy_hours(level) for e in done) for level in levels},
         fault_flight_false_events=sum(e.fault_flight_false_events() for e in done),
+        false_events_by_state=_add_counts(e.false_events_by_state() for e in done),
     )
