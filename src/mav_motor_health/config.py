@@ -268,6 +268,7 @@ _PROFILE_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "speed_only_band_frac": (0.0, 1.0, ""),
     "free_speed_headroom_fraction": _ANY,  # 0 means the default; the range is checked by the profile
     "stop_speed_fraction": (0.0, 0.99, ""),
+    "stop_speed_lowest_fraction": (0.0, 0.99, ""),
     "joint_band_sum": (0.0, 2.0, ""),
     "slow_band_fraction": (0.0, 1.0, ""),
     "min_command": (0.0, 1.0, ""),
@@ -419,6 +420,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         f"stop_speed_fraction = {profile.stop_speed_fraction!r}",
         f"min_command = {profile.min_command!r}",
     ]
+    if profile.stop_speed_lowest_fraction:
+        lines.append(f"stop_speed_lowest_fraction = {profile.stop_speed_lowest_fraction!r}")
     if profile.activity_band:
         rows = ", ".join("[" + ", ".join(repr(x) for x in row) + "]" for row in profile.activity_band)
         lines.append(f"activity_band = [{rows}]")

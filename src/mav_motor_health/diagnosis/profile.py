@@ -101,6 +101,11 @@ class ThresholdProfile:
     ``stop_speed_fraction`` (0 ≤ f < 1): a motor below f × its expected speed counts as stopped too (tree
     rule 1; 0, the default: the paper's stop speed alone).
 
+    ``stop_speed_lowest_fraction`` (0 ≤ g < 1): the stop speed is at most g × the free speed ``V/k_e`` of
+    the lowest input the motor has been given in the stream (tree rule 1, "The lowest input"): a healthy
+    motor never turns slower than its lowest input drives it, whatever the log paired it with. 0, the
+    default: no such cap.
+
     ``joint_band_sum`` (1 ≤ c ≤ 2, or 0): where speed and current both leave the model in the directions a
     fault moves them, by shares of their bands that add up to at least c, that fault is named even if
     neither leaves its band (two departures that agree need less of each; see :mod:`.tree`). 0, the
@@ -137,6 +142,7 @@ class ThresholdProfile:
     current_band_a: tuple[tuple[float, float], ...] = ((4.0, 0.25), (11.0, 2.5))
     stop_speed_rad_s: float = 100.0
     stop_speed_fraction: float = 0.0
+    stop_speed_lowest_fraction: float = 0.0
     stall_split_a: float = 6.0
     stall_split_per_v: float = 0.0
     stall_split_ref_v: float = 11.1
@@ -170,6 +176,12 @@ class ThresholdProfile:
                 f"{self.stop_speed_fraction!r}",
                 key="stop_speed_fraction",
                 expected="a fraction 0 <= f < 1 of the expected speed (0: 100 rad/s alone, the paper)",
+            )
+        if not 0 <= self.stop_speed_lowest_fraction < 1:
+            raise ConfigError(
+                f"{self.stop_speed_lowest_fraction!r}",
+                key="stop_speed_lowest_fraction",
+                expected="a fraction 0 <= g < 1 of the lowest input's free speed (0: no cap)",
             )
         if not self.stall_split_a > 0:
             raise ConfigError(f"{self.stall_split_a!r}", key="stall_split_a", expected="a current > 0 A")

@@ -55,6 +55,18 @@ speed band: a motor at idle or disarmed is not "stopped" in the paper's sense (i
 model is sure of; in flight the pipeline passes the lower of the steady state and its lagged response, so
 that a motor spinning down after its command dropped is not taken for a stalled one.
 
+The lowest input (rule 1, our addition; ``stop_speed_lowest_fraction`` g > 0, the ``flight_vehicle``
+profile). 100 rad/s is the paper's motor, whose idle speed is about 136 rad/s (0.12 of a 3S bus); a
+heavy-lift motor on a 0.8-m propeller idles at 25 rad/s and hovers at 180, and in gusts its controller
+drives it to idle and back several times a second. A log pairs each speed with one command, at most
+tens of times a second, so such a motor reads 50 rad/s "at" a command of 0.73 and looked stalled: half
+the false events on two of twenty held-out worlds. Whatever a log paired it with, a healthy motor never
+turns much slower than the lowest input it is given: after any input it runs down towards that input's
+speed from above. So the stop speed (and the absolute floor of the "expects a turning motor" test) is
+at most g × the free speed ``V_low/k_e`` of the lowest positive input ``V_low`` the motor has been given
+in the stream so far (the balance rule carries it; a log of the armed vehicle soon holds its idle). A
+stalled rotor (a phase open, a lost back-EMF signal) is held near 0 rad/s and stays below that cap.
+
 Free-speed headroom (rule 2, our addition). No fault can make a motor turn faster than its free speed
 ``V/k_e``, where the back-EMF equals the input voltage: a lighter propeller (F3.1), even none at all, can
 raise the speed by at most the headroom ``V/k_e − ω_model``. With the paper's motor that headroom is
@@ -145,13 +157,15 @@ def classify_depth(
     activity_v: ArrayLike | None = None,
     bands: tuple[NDArray[np.float64] | float, NDArray[np.float64], NDArray[np.float64]] | None = None,
     stall_split_a: ArrayLike | None = None,
+    stop_cap_rad_s: ArrayLike | None = None,
 ) -> tuple[NDArray[np.int8], NDArray[np.float64]]:
     """:func:`classify`, and how deep in its state each sample is (see "Depth"): state codes, depths.
 
     ``bands`` (speed, current above the model, current below it) are the profile's bands at these samples
     if the caller has them already (the pipeline, which also reports them); None: computed here.
     ``stall_split_a``: the F2.1/F4.2 split at each sample where the caller knows the motor's own (its
-    typical current, :mod:`.noise`); None: the profile's."""
+    typical current, :mod:`.noise`); None: the profile's. ``stop_cap_rad_s``: the highest stop speed at each
+    sample (see "The lowest input"); None: no cap."""
     w, w_model, i, i_model, v = np.broadcast_arrays(
         *(
             np.asarray(x, dtype=float)
@@ -193,11 +207,13 @@ def classify_depth(
     # Rule 1 needs the model to expect a turning motor: an idle or disarmed motor is not a stalled one.
     expected = w_model if omega_expected_rad_s is None else np.broadcast_to(omega_expected_rad_s, w.shape)
     stop = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * expected)
+    floor: NDArray[np.float64] | float = profile.stop_speed_rad_s
+    if stop_cap_rad_s is not None:  # never above what the lowest input given so far drives a healthy motor at
+        cap = np.broadcast_to(np.asarray(stop_cap_rad_s, dtype=float), w.shape)
+        stop, floor = np.fmin(stop, cap), np.fmin(floor, cap)
     # (the band's margin at most the stop speed itself: a vehicle's noise band may be wide in gusts, and a
     # motor expected at twice the stop speed is turning by any measure)
-    stopped = (np.abs(w) < stop) & (
-        expected >= profile.stop_speed_rad_s + np.minimum(band_w, profile.stop_speed_rad_s)
-    )
+    stopped = (np.abs(w) < stop) & (expected >= floor + np.minimum(band_w, floor))
 
     state = np.full(w.shape, MotorState.UNKNOWN, dtype=np.int8)
     not_high = ~speed_high

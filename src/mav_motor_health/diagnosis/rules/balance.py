@@ -20,6 +20,7 @@ they are.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,7 +29,7 @@ from numpy.typing import NDArray
 from ..._arrays import nan_to_zero
 from ...errors import ConfigError
 from ...model.balance import BalanceCarry, balance_deviations_rows
-from ...model.dynamics import ResponseCarry, first_order_responses
+from ...model.dynamics import ResponseCarry, first_order_responses, last_of
 from ..stall import StallCarry, stall_mean_rows
 from ..steady import SteadyCarry, settling_rows
 from .base import CompareRule, Frame, SlowAverages
@@ -46,6 +47,8 @@ class BalanceRuleCarry:
     stall: StallCarry = field(default_factory=StallCarry)
     slow_omega: ResponseCarry = field(default_factory=ResponseCarry)
     slow_current: ResponseCarry = field(default_factory=ResponseCarry)
+    #: the lowest positive input the motor has been given in the stream [V] (inf: none yet)
+    lowest_input_v: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -124,6 +127,19 @@ class BalanceRule(CompareRule):
         # averaged since the stall began (diagnosis/stall.py: the low-pass still holds the flight's).
         stall_speed = np.fmin(omega_in, bal.omega_mean_rad_s)
         stop_speed = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * omega_pred)
+        lowest = [c.lowest_input_v for c in carries]
+        if profile.stop_speed_lowest_fraction > 0:
+            # never stopped above a share of the free speed of the lowest input given so far (tree.py,
+            # "The lowest input"): a healthy motor runs down towards that input's speed, not below it
+            with np.errstate(invalid="ignore"):
+                given = np.where(v > 0, v, np.inf)
+            running = np.minimum.accumulate(
+                np.concatenate([np.array(lowest)[:, None], given], axis=1), axis=1
+            )
+            low_v = running[:, 1:]
+            frame.stop_cap_rad_s = profile.stop_speed_lowest_fraction * low_v / frame.params.k_e
+            stop_speed = np.fmin(stop_speed, frame.stop_cap_rad_s)
+            lowest = [old if last is None else last for old, last in zip(lowest, last_of(low_v, counts))]
         stalled_like = stall_speed < stop_speed
         omega_seen = np.where(stalled_like, stall_speed, omega_pred + bal.delta_omega_rad_s)
         omega_seen = np.where(np.isfinite(omega_in), omega_seen, np.nan)
@@ -203,7 +219,12 @@ class BalanceRule(CompareRule):
         frame.design_tau_s = self.residual_tau_s
         return [
             BalanceRuleCarry(
-                balance_carries[r], settled[r], stall_carries[r], slow_carries[r], slow_carries[rows + r]
+                balance_carries[r],
+                settled[r],
+                stall_carries[r],
+                slow_carries[r],
+                slow_carries[rows + r],
+                lowest[r],
             )
             for r in range(rows)
         ]

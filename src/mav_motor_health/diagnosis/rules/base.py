@@ -97,6 +97,9 @@ class Frame:
     judged_voltage_v: NDArray[np.float64] = None  # type: ignore[assignment]
     #: the speed the motor is expected to turn at (tree rule 1)
     omega_expected_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
+    #: the highest stop speed of each sample [rad/s] (tree rule 1, "The lowest input": a share of the free
+    #: speed of the lowest input given so far); None: the profile's stop speed alone
+    stop_cap_rad_s: NDArray[np.float64] | None = None
     #: the motor's free speed V/k_e, above which no fault turns it (tree rule 2); None: no cap
     omega_free_rad_s: NDArray[np.float64] | None = None
     #: the input activity [V] that widens the bands (balance rule); None: none measured

@@ -41,6 +41,7 @@ class Tree(Rule):
             omega_free_rad_s=frame.omega_free_rad_s,
             bands=(frame.speed_band_rad_s, frame.current_band_a, frame.current_band_below_a),
             stall_split_a=self._stall_split(frame),
+            stop_cap_rad_s=frame.stop_cap_rad_s,
         )
         return carries
 
