@@ -121,7 +121,7 @@ def print_world(e: WorldEvaluation) -> None:
         how = "the world's true vehicle"
     print(
         f"world {e.world} ({e.description}); {how}; {e.fault_flight_false_events()} false events on the "
-        f"fault flights' healthy motors; {e.seconds:.0f} s"
+        f"fault flights' healthy motors{_states(e.fault_flight_false_events_by_state())}; {e.seconds:.0f} s"
     )
     for level in TURBULENCE_LEVELS:
         acc = " ".join(_pct(e.accuracy(level, f), 5) for f in FAULTS)
@@ -198,7 +198,10 @@ def print_healthy(s: WorldsSummary) -> None:
     )
     if s.false_events_by_state:
         print("  by state announced: " + ", ".join(f"{k} {v}" for k, v in s.false_events_by_state.items()))
-    print(f"  (and {s.fault_flight_false_events} on healthy motors of the fault flights, or before onset)")
+    print(
+        f"  (and {s.fault_flight_false_events} on healthy motors of the fault flights, or before onset"
+        f"{_states(dict(s.fault_flight_false_events_by_state))})"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -301,11 +301,7 @@ class WorldEvaluation:
 
     def false_events_by_state(self, turbulence: str | None = None) -> dict[str, int]:
         """:meth:`false_events` by the state announced (label: count)."""
-        counts: dict[str, int] = {}
-        for r in self.healthy_flights(turbulence):
-            for label, n in r.score.false_events_by_state.items():
-                counts[label] = counts.get(label, 0) + n
-        return counts
+        return _add_counts(r.score.false_events_by_state for r in self.healthy_flights(turbulence))
 
     def healthy_hours(self, turbulence: str | None = None) -> float:
         return sum(r.score.hours for r in self.healthy_flights(turbulence))
@@ -313,6 +309,10 @@ class WorldEvaluation:
     def fault_flight_false_events(self) -> int:
         """Fault announcements on the healthy motors of the fault flights (and before onset)."""
         return sum(r.score.false_events for r in self.flights if r.flight.fault is not None)
+
+    def fault_flight_false_events_by_state(self) -> dict[str, int]:
+        """:meth:`fault_flight_false_events` by the state announced (label: count)."""
+        return _add_counts(r.score.false_events_by_state for r in self.flights if r.flight.fault is not None)
 
 
 def evaluate_world(
@@ -484,6 +484,8 @@ class WorldsSummary:
     fault_flight_false_events: int
     #: the healthy flights' false events by the state announced (label: count), all levels
     false_events_by_state: Mapping[str, int] = field(default_factory=dict)
+    #: the fault flights' false events (healthy motors, or before onset) by the state announced
+    fault_flight_false_events_by_state: Mapping[str, int] = field(default_factory=dict)
 
     @property
     def false_events_per_hour(self) -> float:
@@ -547,4 +549,5 @@ def summarise(
         healthy_hours={level: sum(e.healthy_hours(level) for e in done) for level in levels},
         fault_flight_false_events=sum(e.fault_flight_false_events() for e in done),
         false_events_by_state=_add_counts(e.false_events_by_state() for e in done),
+        fault_flight_false_events_by_state=_add_counts(e.fault_flight_false_events_by_state() for e in done),
     )
