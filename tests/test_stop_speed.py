@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from mav_motor_health.config import load_profile
+from mav_motor_health.config import dump_profile, load_profile
 from mav_motor_health.diagnosis.pipeline import diagnose_motor
 from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.diagnosis.tree import classify_depth
@@ -92,9 +92,19 @@ def test_the_tree_caps_its_stop_speed_and_its_turning_floor() -> None:
     assert capped.tolist() == [MotorState.F4_1, MotorState.F2_1, MotorState.F2_1]
 
 
-def test_the_fraction_is_checked() -> None:
+def test_the_fraction_is_checked_and_round_trips(tmp_path) -> None:
     with pytest.raises(ConfigError, match="stop_speed_lowest_fraction"):
         dataclasses.replace(load_profile("flight"), stop_speed_lowest_fraction=1.0)
+    shipped = load_profile("flight_vehicle")
+    assert shipped.stop_speed_lowest_fraction == 0.5
+    path = tmp_path / "p.toml"
+    path.write_text(dump_profile(shipped))
+    assert load_profile(path) == shipped
+    path.write_text(
+        dump_profile(shipped).replace("stop_speed_lowest_fraction = 0.5", "stop_speed_lowest_fraction = 2")
+    )
+    with pytest.raises(ConfigError, match="stop_speed_lowest_fraction"):
+        load_profile(path)
 
 
 def test_the_lowest_input_is_carried_from_one_call_to_the_next(flight_profile) -> None:

@@ -57,10 +57,11 @@ that a motor spinning down after its command dropped is not taken for a stalled 
 
 The lowest input (rule 1, our addition; ``stop_speed_lowest_fraction`` g > 0, the ``flight_vehicle``
 profile). 100 rad/s is the paper's motor, whose idle speed is about 136 rad/s (0.12 of a 3S bus); a
-heavy-lift motor on a 0.8-m propeller idles at 25 rad/s and hovers at 180, and in gusts its controller
+heavy-lift motor on a 0.8-m propeller idles near 25 rad/s and hovers near 180, and in gusts its controller
 drives it to idle and back several times a second. A log pairs each speed with one command, at most
-tens of times a second, so such a motor reads 50 rad/s "at" a command of 0.73 and looked stalled: half
-the false events on two of twenty held-out worlds. Whatever a log paired it with, a healthy motor never
+tens of times a second, so such a motor read 44 rad/s "at" a command of 0.73 and looked stalled (23 of
+the 36 false events in ten healthy hours on twenty held-out worlds were such stalls, docs/flight.md, "The
+stop speed from the lowest input"). Whatever a log paired it with, a healthy motor never
 turns much slower than the lowest input it is given: after any input it runs down towards that input's
 speed from above. So the stop speed (and the absolute floor of the "expects a turning motor" test) is
 at most g × the free speed ``V_low/k_e`` of the lowest positive input ``V_low`` the motor has been given
