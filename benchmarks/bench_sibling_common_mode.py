@@ -182,8 +182,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"world {r['world']}: not identified ({r['error']})")
             continue
         n, out, out_off = r["healthy"]
-        before.append(_pct(out, n))
-        after.append(_pct(out_off, n))
+        if n:  # a world whose current identification found unusable judges no current: left out
+            before.append(_pct(out, n))
+            after.append(_pct(out_off, n))
         kept = [off / on for _, _, on, off in r["faults"] if on > 1.0]
         ratio.extend(kept)
         signal = " ".join(f"{lv[0]}{f}:{on:.1f}->{off:.1f}" for lv, f, on, off in r["faults"])
@@ -193,10 +194,12 @@ def main(argv: list[str] | None = None) -> int:
             f"{signal}; {r['seconds']:.0f} s"
         )
     if before:
-        worst = max(range(len(before)), key=lambda k: before[k])
         print(
-            f"\nhealthy judged samples outside the bands, median world {statistics.median(before):.3f} -> "
-            f"{statistics.median(after):.3f} %, worst world {before[worst]:.3f} -> {after[worst]:.3f} %"
+            f"\nhealthy judged samples outside the bands ({len(before)} worlds with a usable current): "
+            f"median world {statistics.median(before):.3f} % as diagnosed, {statistics.median(after):.3f} % "
+            f"with the sibling median off; worst world {max(before):.3f} / {max(after):.3f} %; "
+            f"fewer in {sum(a < b for b, a in zip(before, after))}, more in "
+            f"{sum(a > b for b, a in zip(before, after))}"
         )
     if ratio:
         print(
