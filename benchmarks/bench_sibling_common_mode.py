@@ -42,7 +42,7 @@ from mav_motor_health.diagnosis.noise import band_noise_of  # noqa: E402
 from mav_motor_health.diagnosis.pipeline import diagnose  # noqa: E402
 from mav_motor_health.evaluation.worlds import (  # noqa: E402
     describe_world,
-    fly_world,
+    fly_flight,
     identify_world,
     world_flights,
 )
@@ -112,15 +112,7 @@ def one_world(world: int, max_age_s: float) -> dict:
             log = folder / f"{flight.name}.tlog"
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                record = fly_world(
-                    world,
-                    seed=flight.seed,
-                    duration_s=flight.duration_s,
-                    turbulence=flight.turbulence,
-                    faults=flight.faults(),
-                    name=flight.name,
-                )
-                write_record(record, log)
+                write_record(fly_flight(flight), log)
                 table = vehicle.calibrate(sources.read(log))
                 result = diagnose(table, vehicle.models(range(1, 7)), profile, noise)
             log.unlink()

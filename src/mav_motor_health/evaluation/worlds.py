@@ -70,6 +70,7 @@ __all__ = [
     "WorldsSummary",
     "describe_world",
     "evaluate_world",
+    "fly_flight",
     "fly_world",
     "identify_world",
     "percentile",
@@ -184,6 +185,18 @@ def fly_world(
         world_turbulence=turbulence,
     )
     return run_scenario(scenario)
+
+
+def fly_flight(flight: WorldFlight) -> SimRecord:
+    """One test flight of :func:`world_flights` flown (its world, seed, length, air and fault)."""
+    return fly_world(
+        flight.world,
+        seed=flight.seed,
+        duration_s=flight.duration_s,
+        turbulence=flight.turbulence,
+        faults=flight.faults(),
+        name=flight.name,
+    )
 
 
 def write_identification_log(world: int, path: str | Path, duration_s: float = 150.0) -> Path:
@@ -390,15 +403,7 @@ def _replay_flight(
     out = folder / f"{flight.name}.replay"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        record = fly_world(
-            flight.world,
-            seed=flight.seed,
-            duration_s=flight.duration_s,
-            turbulence=flight.turbulence,
-            faults=flight.faults(),
-            name=flight.name,
-        )
-        write_record(record, log)
+        write_record(fly_flight(flight), log)
         replayed = replay_log(log, out, vehicle, profile, reissue_warnings=False)
     diagnosis = read_diagnosis(out / "diagnosis.csv")
     truth = read_truth(truth_path(log))
