@@ -24,6 +24,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -174,15 +175,13 @@ def score(diagnosis: Mapping[str, NDArray[Any]], truth: Mapping[str, Any]) -> Sc
             accuracy_pct(diagnosis["omega_rad_s"][healthy], diagnosis["omega_model_rad_s"][healthy])
             + accuracy_pct(diagnosis["current_a"][healthy], diagnosis["current_model_a"][healthy])
         )
-    by_state: dict[str, int] = {}
+    by_state: Counter[str] = Counter()
     for m in np.unique(motor):
         sel = np.flatnonzero((motor == m) & healthy)
         a = announced[sel]
         is_fault = np.isin(a, _FAULT_CODES)
         starts = np.flatnonzero(np.concatenate([is_fault[:1], is_fault[1:] & (a[1:] != a[:-1])]))
-        for code in a[starts].tolist():
-            label = MotorState(int(code)).label
-            by_state[label] = by_state.get(label, 0) + 1
+        by_state.update(MotorState(int(code)).label for code in a[starts].tolist())
     false_events = sum(by_state.values())
     return Score(
         fault=None if f is None else str(f["fault"]),

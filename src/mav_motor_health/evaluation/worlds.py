@@ -38,6 +38,7 @@ import math
 import tempfile
 import time
 import warnings
+from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -499,10 +500,10 @@ class WorldsSummary:
 
 
 def _add_counts(counts: Iterable[Mapping[str, int]]) -> dict[str, int]:
-    total: dict[str, int] = {}
+    """Counts by label added up, the labels in order."""
+    total: Counter[str] = Counter()
     for each in counts:
-        for label, n in each.items():
-            total[label] = total.get(label, 0) + n
+        total.update(each)
     return dict(sorted(total.items()))
 
 

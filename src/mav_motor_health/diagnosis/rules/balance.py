@@ -131,8 +131,7 @@ class BalanceRule(CompareRule):
         if profile.stop_speed_lowest_fraction > 0:
             # never stopped above a share of the free speed of the lowest input given so far (tree.py,
             # "The lowest input"): a healthy motor runs down towards that input's speed, not below it
-            with np.errstate(invalid="ignore"):
-                given = np.where(v > 0, v, np.inf)
+            given = np.where(v > 0, v, np.inf)  # NaN and disarmed (<= 0) inputs are not given
             running = np.minimum.accumulate(
                 np.concatenate([np.array(lowest)[:, None], given], axis=1), axis=1
             )
