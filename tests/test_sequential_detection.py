@@ -156,3 +156,55 @@ def test_the_profile_carries_the_test_and_refuses_it_without_noise_bands(tmp_pat
     with pytest.raises(ConfigError) as err:
         load_profile(bad)
     assert "detection.false_alarms_per_100h" in str(err.value) and str(bad) in str(err.value)
+
+
+def run_at(rule: SequentialRule, z: np.ndarray, dt_s: float) -> np.ndarray:
+    """:func:`run` at another telemetry interval (the low-pass still TAU_S: one observation per 2τ)."""
+    n = z.shape[1]
+    announced, _, _ = sequential_alarms(
+        rule,
+        np.arange(n) * dt_s,
+        direction_evidence(z[0], z[1], np.ones(n, dtype=bool), 4.5),
+        np.full(n, 2 * TAU_S),
+        np.ones(n, dtype=bool),
+        SequentialCarry(),
+        0.5,
+        TAU_S,
+    )
+    return announced
+
+
+def test_a_lone_outlier_is_no_alarm_at_any_rate_once_an_alarm_needs_one_observation() -> None:
+    """10-Hz telemetry: one sample 13 σ or two 12 σ slow with less current (a command that dipped between
+    two logged ones) is an F4.1 alarm without the floor, none with it; a departure that deep and lasting is
+    still named, no sooner than one observation (2τ) and within a few."""
+    loose = SequentialRule(false_alarms_per_100h=1.0, reference_sigmas=2.5)
+    floored = dataclasses.replace(loose, min_observations=1.0)
+    h = loose.threshold(TAU_S)
+    assert floored.evidence_cap(h) == pytest.approx(2.5 + h) and loose.evidence_cap(h) == np.inf
+    dt_s = 0.1
+    rng = np.random.default_rng(18)
+    for spikes, depth in ((1, 13.0), (2, 12.0)):
+        z = 0.5 * rng.standard_normal((2, 300))
+        z[:, 150 : 150 + spikes] = -depth
+        assert (run_at(loose, z, dt_s) == MotorState.F4_1).any()
+        assert not run_at(floored, z, dt_s).any()
+    for dt in (0.1, 0.02, 0.005):  # 10, 50 and 200 Hz
+        n, onset = int(6.0 / dt), int(3.0 / dt)
+        z = 0.5 * rng.standard_normal((2, n))
+        z[:, onset:] -= 12.0
+        named = np.flatnonzero(run_at(floored, z, dt) == MotorState.F4_1)
+        assert named.size and named[0] >= onset
+        delay = (named[0] - onset) * dt
+        assert 2 * TAU_S - dt <= delay <= 2 * 2 * TAU_S
+        # without the floor, 12 σ at 200 Hz is named in a few samples: the floor's cost, one observation
+        quick = np.flatnonzero(run_at(loose, z, dt) == MotorState.F4_1)
+        assert quick[0] <= named[0]
+
+
+def test_the_floor_is_validated_and_written_back() -> None:
+    profile = load_profile("flight_vehicle")
+    assert profile.detection.min_observations == 1.0
+    assert "min_observations = 1.0" in dump_profile(profile)
+    with pytest.raises(ConfigError, match="min_observations"):
+        SequentialRule(false_alarms_per_100h=1.0, min_observations=-1.0)

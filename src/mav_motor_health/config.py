@@ -287,6 +287,7 @@ _VEHICLE_CHECK_RANGES: dict[str, tuple[float | None, float | None, str]] = {
 _DETECTION_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "false_alarms_per_100h": (0.0, None, ""),
     "reference_sigmas": (None, None, "sigma"),
+    "min_observations": (0.0, None, ""),
 }
 _PERSISTENCE_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "default_announce_s": (0.0, None, "s"),
@@ -476,6 +477,7 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
             "[detection]",
             f"false_alarms_per_100h = {d.false_alarms_per_100h!r}",
             f"reference_sigmas = {d.reference_sigmas!r}",
+            f"min_observations = {d.min_observations!r}",
         ]
     lines += ["", "[plausibility]"]
     lines += [f"{name} = {value!r}" for name, value in profile.plausibility.__dict__.items()]

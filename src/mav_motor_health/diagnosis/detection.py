@@ -31,6 +31,14 @@ time to detect a departure of δ σ is then about ``h/(δ − k)`` observations:
 a fraction of τ, a shallow one after seconds. The rate is a design figure under that noise model; what a
 vehicle really gives is measured by ``benchmarks/bench_flight_worlds.py``.
 
+**Outliers.** The threshold is designed under Gaussian noise, where a sample 10 σ off never happens;
+telemetry has heavier tails (a command that dipped between two logged commands, at a manoeuvre's start,
+leaves one or two samples that far off). With ``min_observations`` m > 0 each sample's evidence counts
+at most ``k + h/m``: an alarm then needs at least m independent observations' worth of evidence
+(m·2τ of time at any telemetry rate), and a lone outlier, at 10 Hz a third of an observation, adds at
+most a third of h/m. A departure that deep and longer is named as before; below the cap nothing changes,
+and the design's false-alarm rate under its own noise model can only fall.
+
 Stalls, sensor faults and NO_DATA keep :mod:`.persistence` (a motor below the stop speed is a physical
 fact, not a statistical one) and take precedence over the directions.
 """
@@ -88,6 +96,10 @@ class SequentialRule:
 
     false_alarms_per_100h: float = 0.0
     reference_sigmas: float = 2.0
+    #: an alarm needs at least this many independent observations' worth of evidence (0: no such floor):
+    #: each sample's evidence is capped at ``k + h / min_observations``, so no single sample, however far
+    #: off, is an alarm on its own (module doc, "Outliers")
+    min_observations: float = 0.0
 
     def __post_init__(self) -> None:
         if not (self.false_alarms_per_100h == 0 or 1e-6 <= self.false_alarms_per_100h <= 1e6):
@@ -100,10 +112,20 @@ class SequentialRule:
             raise ConfigError(
                 f"{self.reference_sigmas!r}", key="detection.reference_sigmas", expected="0 < k <= 10 (sigma)"
             )
+        if not 0 <= self.min_observations <= 100:
+            raise ConfigError(
+                f"{self.min_observations!r}",
+                key="detection.min_observations",
+                expected="0 (no floor) to 100 independent observations",
+            )
 
     @property
     def on(self) -> bool:
         return self.false_alarms_per_100h > 0
+
+    def evidence_cap(self, h: float) -> float:
+        """The most one sample's evidence counts [σ] under the threshold ``h`` (inf: no cap)."""
+        return self.reference_sigmas + h / self.min_observations if self.min_observations > 0 else math.inf
 
     def threshold(self, tau_s: float) -> float:
         """The CUSUM threshold h [σ·observations] this rule's rate asks for, the deviations low-passed
@@ -232,7 +254,9 @@ def sequential_alarms(
         dt = np.diff(tj, prepend=last_s)
         fresh = ~(dt <= max_gap_s)  # a gap (or the first sample ever): the sums start afresh
         dt = np.where(fresh, 0.0, dt)
-        steps = (evidence[:, idx] - k) * (dt / np.asarray(observation_s, dtype=float)[idx])
+        steps = (np.minimum(evidence[:, idx], rule.evidence_cap(h)) - k) * (
+            dt / np.asarray(observation_s, dtype=float)[idx]
+        )
         starts = np.flatnonzero(fresh)
         bounds = (
             [0, *starts.tolist(), idx.size] if (starts.size == 0 or starts[0] != 0) else [*starts, idx.size]
