@@ -202,9 +202,15 @@ def test_a_lone_outlier_is_no_alarm_at_any_rate_once_an_alarm_needs_one_observat
         assert quick[0] <= named[0]
 
 
-def test_the_floor_is_validated_and_written_back() -> None:
-    profile = load_profile("flight_vehicle")
-    assert profile.detection.min_observations == 1.0
-    assert "min_observations = 1.0" in dump_profile(profile)
+def test_the_floor_is_validated_and_written_back(tmp_path) -> None:
+    shipped = load_profile("flight_vehicle")
+    assert shipped.detection.min_observations == 0.0  # off (docs/flight.md: what it costs)
+    profile = dataclasses.replace(
+        shipped, detection=dataclasses.replace(shipped.detection, min_observations=1.0)
+    )
+    path = tmp_path / "floored.toml"
+    path.write_text(dump_profile(profile), encoding="utf-8")
+    assert "min_observations = 1.0" in path.read_text(encoding="utf-8")
+    assert load_profile(path) == profile
     with pytest.raises(ConfigError, match="min_observations"):
         SequentialRule(false_alarms_per_100h=1.0, min_observations=-1.0)
