@@ -36,8 +36,11 @@ telemetry has heavier tails (a command that dipped between two logged commands, 
 leaves one or two samples that far off). With ``min_observations`` m > 0 each sample's evidence counts
 at most ``k + h/m``: an alarm then needs at least m independent observations' worth of evidence
 (m·2τ of time at any telemetry rate), and a lone outlier, at 10 Hz a third of an observation, adds at
-most a third of h/m. A departure that deep and longer is named as before; below the cap nothing changes,
-and the design's false-alarm rate under its own noise model can only fall.
+most a third of h/m. A departure that deep and lasting is still named, after m observations rather than
+in a few samples; below the cap nothing changes, and the design's false-alarm rate under its own noise
+model can only fall. The cost, measured: a departure that leaves the judged range within one
+observation (a lost propeller's motor running away) is named only later, by another rule; so the
+shipped ``flight_vehicle`` has m = 0 (docs/flight.md, "A cap on each sample's evidence, measured").
 
 Stalls, sensor faults and NO_DATA keep :mod:`.persistence` (a motor below the stop speed is a physical
 fact, not a statistical one) and take precedence over the directions.
