@@ -14,13 +14,17 @@ persistence (0.05 s, two or three samples) still asks the split to hold.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..model.dynamics import last_of
 
-__all__ = ["StallCarry", "stall_mean", "stall_mean_rows"]
+if TYPE_CHECKING:
+    from .profile import ThresholdProfile
+
+__all__ = ["StallCarry", "stall_mean", "stall_mean_rows", "stop_speeds"]
 
 
 @dataclass(frozen=True)
@@ -95,3 +99,19 @@ def stall_mean_rows(
         else:
             news.append(StallCarry(float(last_total), int(last_count), True) if last_run else StallCarry())
     return mean, news
+
+
+def stop_speeds(
+    profile: ThresholdProfile, expected_rad_s: ArrayLike, cap_rad_s: ArrayLike | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | float]:
+    """The tree's rule 1 stop speed at each sample (below it a motor is stopped) and its absolute floor
+    (the "expects a turning motor" test's): the profile's stop speed, or its share of the
+    ``expected_rad_s`` speed if higher, both at most ``cap_rad_s`` where given (tree.py, "The lowest
+    input"). The balance rule and the tree both read it here."""
+    expected = np.asarray(expected_rad_s, dtype=float)
+    stop = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * expected)
+    floor: NDArray[np.float64] | float = profile.stop_speed_rad_s
+    if cap_rad_s is not None:
+        cap = np.broadcast_to(np.asarray(cap_rad_s, dtype=float), stop.shape)
+        stop, floor = np.fmin(stop, cap), np.fmin(floor, cap)
+    return stop, floor

@@ -99,6 +99,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .profile import ThresholdProfile
+from .stall import stop_speeds
 from .states import MotorState
 
 __all__ = ["agreeing_departures", "classify", "classify_depth"]
@@ -207,11 +208,8 @@ def classify_depth(
         more = np.maximum(i - i_model, 0.0) / band_i
     # Rule 1 needs the model to expect a turning motor: an idle or disarmed motor is not a stalled one.
     expected = w_model if omega_expected_rad_s is None else np.broadcast_to(omega_expected_rad_s, w.shape)
-    stop = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * expected)
-    floor: NDArray[np.float64] | float = profile.stop_speed_rad_s
-    if stop_cap_rad_s is not None:  # never above what the lowest input given so far drives a healthy motor at
-        cap = np.broadcast_to(np.asarray(stop_cap_rad_s, dtype=float), w.shape)
-        stop, floor = np.fmin(stop, cap), np.fmin(floor, cap)
+    # never above what the lowest input given so far drives a healthy motor at, where capped
+    stop, floor = stop_speeds(profile, expected, stop_cap_rad_s)
     # (the band's margin at most the stop speed itself: a vehicle's noise band may be wide in gusts, and a
     # motor expected at twice the stop speed is turning by any measure)
     stopped = (np.abs(w) < stop) & (expected >= floor + np.minimum(band_w, floor))

@@ -30,7 +30,7 @@ from ..._arrays import nan_to_zero
 from ...errors import ConfigError
 from ...model.balance import BalanceCarry, balance_deviations_rows
 from ...model.dynamics import ResponseCarry, first_order_responses, last_of
-from ..stall import StallCarry, stall_mean_rows
+from ..stall import StallCarry, stall_mean_rows, stop_speeds
 from ..steady import SteadyCarry, settling_rows
 from .base import CompareRule, Frame, SlowAverages
 from .step import check_settling
@@ -126,7 +126,6 @@ class BalanceRule(CompareRule):
         # start-up kick does not break the run and the first slow sample counts), and the current
         # averaged since the stall began (diagnosis/stall.py: the low-pass still holds the flight's).
         stall_speed = np.fmin(omega_in, bal.omega_mean_rad_s)
-        stop_speed = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * omega_pred)
         lowest = [c.lowest_input_v for c in carries]
         if profile.stop_speed_lowest_fraction > 0:
             # never stopped above a share of the free speed of the lowest input given so far (tree.py,
@@ -137,8 +136,8 @@ class BalanceRule(CompareRule):
             )
             low_v = running[:, 1:]
             frame.stop_cap_rad_s = profile.stop_speed_lowest_fraction * low_v / frame.params.k_e
-            stop_speed = np.fmin(stop_speed, frame.stop_cap_rad_s)
             lowest = [old if last is None else last for old, last in zip(lowest, last_of(low_v, counts))]
+        stop_speed, _ = stop_speeds(profile, omega_pred, frame.stop_cap_rad_s)  # the tree's rule 1
         stalled_like = stall_speed < stop_speed
         omega_seen = np.where(stalled_like, stall_speed, omega_pred + bal.delta_omega_rad_s)
         omega_seen = np.where(np.isfinite(omega_in), omega_seen, np.nan)
