@@ -11,6 +11,7 @@ from scipy.signal import lfilter
 
 from mav_motor_health.config import dump_profile, load_profile
 from mav_motor_health.diagnosis.detection import (
+    CAPPED_DIRECTIONS,
     DIRECTIONS,
     SequentialCarry,
     SequentialRule,
@@ -200,6 +201,25 @@ def test_a_lone_outlier_is_no_alarm_at_any_rate_once_an_alarm_needs_one_observat
         # without the floor, 12 σ at 200 Hz is named in a few samples: the floor's cost, one observation
         quick = np.flatnonzero(run_at(loose, z, dt) == MotorState.F4_1)
         assert quick[0] <= named[0]
+
+
+def test_the_floor_spares_a_runaway_motor() -> None:
+    """A lost propeller's motor runs away (faster, less current) and leaves the judged range within one
+    observation: its few samples are named with the floor as without it, while the same few samples the
+    other way (slower, less current: F4.1, a lasting direction) are capped and named by nothing."""
+    loose = SequentialRule(false_alarms_per_100h=1.0, reference_sigmas=2.5)
+    floored = dataclasses.replace(loose, min_observations=1.0)
+    assert MotorState.F3_1 not in CAPPED_DIRECTIONS and MotorState.F4_1 in CAPPED_DIRECTIONS
+    rng = np.random.default_rng(19)
+    z = 0.5 * rng.standard_normal((2, 300))
+    z[0, 150:152], z[1, 150:152] = 12.0, -12.0  # two 10-Hz samples, then out of the judged range
+    z[:, 152:] = np.nan
+    runaway = run_at(floored, z, 0.1)
+    assert (runaway == MotorState.F3_1).any()
+    assert np.array_equal(runaway, run_at(loose, z, 0.1))
+    z[0, 150:152] = -12.0  # slower with less current: the lasting direction, capped
+    assert (run_at(loose, z, 0.1) == MotorState.F4_1).any()
+    assert not run_at(floored, z, 0.1).any()
 
 
 def test_the_floor_is_validated_and_written_back(tmp_path) -> None:

@@ -33,14 +33,17 @@ vehicle really gives is measured by ``benchmarks/bench_flight_worlds.py``.
 
 **Outliers.** The threshold is designed under Gaussian noise, where a sample 10 σ off never happens;
 telemetry has heavier tails (a command that dipped between two logged commands, at a manoeuvre's start,
-leaves one or two samples that far off). With ``min_observations`` m > 0 each sample's evidence counts
-at most ``k + h/m``: an alarm then needs at least m independent observations' worth of evidence
-(m·2τ of time at any telemetry rate), and a lone outlier, at 10 Hz a third of an observation, adds at
-most a third of h/m. A departure that deep and lasting is still named, after m observations rather than
-in a few samples; below the cap nothing changes, and the design's false-alarm rate under its own noise
-model can only fall. The cost, measured: a departure that leaves the judged range within one
-observation (a lost propeller's motor running away) is named only later, by another rule; so the
-shipped ``flight_vehicle`` has m = 0 (docs/flight.md, "A cap on each sample's evidence, measured").
+leaves one or two samples that far off). With ``min_observations`` m > 0 each sample's evidence for a
+*lasting* direction (:data:`CAPPED_DIRECTIONS`: F1.1, F4.1, SLOW) counts at most ``k + h/m``: an alarm
+there needs at least m independent observations' worth of evidence (m·2τ of time at any telemetry
+rate), and a lone outlier, at 10 Hz a third of an observation, adds at most a third of h/m. Those are
+the faults that leave the motor turning inside the judged range (more friction, less torque: it settles
+at a new speed and keeps giving evidence), so a deep one is still named, after m observations rather
+than in a few samples. The other directions are not capped: a lost propeller's motor (F3.1, or FAST
+without a current) runs away and leaves the judged range within one observation, and a cap there let
+only a later rule name it, seconds later (docs/flight.md, "A cap on each sample's evidence, measured").
+Below the cap nothing changes, and the design's false-alarm rate under its own noise model can only
+fall.
 
 Stalls, sensor faults and NO_DATA keep :mod:`.persistence` (a motor below the stop speed is a physical
 fact, not a statistical one) and take precedence over the directions.
@@ -61,6 +64,7 @@ from ..errors import ConfigError
 from .states import MotorState
 
 __all__ = [
+    "CAPPED_DIRECTIONS",
     "DIRECTIONS",
     "SequentialCarry",
     "SequentialRule",
@@ -79,6 +83,9 @@ DIRECTIONS = (
     MotorState.SLOW,
     MotorState.FAST,
 )
+#: directions whose fault leaves the motor turning inside the judged range (it settles at a new speed
+#: and keeps giving evidence): the ones ``min_observations`` caps (module doc, "Outliers")
+CAPPED_DIRECTIONS = (MotorState.F1_1, MotorState.F4_1, MotorState.SLOW)
 #: directions open at once to a motor with a trusted current (F1.1, F4.1, F3.1, UNKNOWN), or without
 DIRECTIONS_AT_ONCE = 4
 #: motors the designed rate covers (an octocopter; fewer motors: fewer false alarms)
@@ -127,8 +134,15 @@ class SequentialRule:
         return self.false_alarms_per_100h > 0
 
     def evidence_cap(self, h: float) -> float:
-        """The most one sample's evidence counts [σ] under the threshold ``h`` (inf: no cap)."""
+        """The most one sample's evidence for a lasting direction counts [σ] under the threshold ``h``
+        (inf: no cap)."""
         return self.reference_sigmas + h / self.min_observations if self.min_observations > 0 else math.inf
+
+    def evidence_caps(self, h: float) -> NDArray[np.float64]:
+        """The cap of each of :data:`DIRECTIONS` (:meth:`evidence_cap` for :data:`CAPPED_DIRECTIONS`,
+        inf for the others), shaped to broadcast over samples."""
+        cap = self.evidence_cap(h)
+        return np.array([cap if d in CAPPED_DIRECTIONS else math.inf for d in DIRECTIONS])[:, None]
 
     def threshold(self, tau_s: float) -> float:
         """The CUSUM threshold h [σ·observations] this rule's rate asks for, the deviations low-passed
@@ -257,7 +271,7 @@ def sequential_alarms(
         dt = np.diff(tj, prepend=last_s)
         fresh = ~(dt <= max_gap_s)  # a gap (or the first sample ever): the sums start afresh
         dt = np.where(fresh, 0.0, dt)
-        steps = (np.minimum(evidence[:, idx], rule.evidence_cap(h)) - k) * (
+        steps = (np.minimum(evidence[:, idx], rule.evidence_caps(h)) - k) * (
             dt / np.asarray(observation_s, dtype=float)[idx]
         )
         starts = np.flatnonzero(fresh)
