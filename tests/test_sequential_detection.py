@@ -18,6 +18,7 @@ from mav_motor_health.diagnosis.detection import (
     average_run_length,
     design_threshold,
     direction_evidence,
+    report_credit,
     sequential_alarms,
 )
 from mav_motor_health.diagnosis.states import MotorState
@@ -118,6 +119,72 @@ def test_any_split_into_calls_gives_the_same_alarms() -> None:
     carry, parts, levels = SequentialCarry(), [], []
     for lo, hi in zip([0, *cuts], [*cuts, z.shape[1]]):
         got, lvl, carry = run(rule, z[:, lo:hi], carry, start=lo)
+        parts.append(got)
+        levels.append(lvl)
+    np.testing.assert_array_equal(np.concatenate(parts), whole)
+    np.testing.assert_allclose(np.concatenate(levels), whole_level, rtol=1e-9, atol=1e-9)
+    assert (whole != 0).any()
+
+
+def run_stream(rule, z, time_s, judged, carry=None):
+    """:func:`run` on a stream of its own times and judged samples."""
+    n = z.shape[1]
+    evidence = direction_evidence(z[0], z[1], np.ones(n, dtype=bool), 4.5)
+    return sequential_alarms(
+        rule, time_s, evidence, np.full(n, 2 * TAU_S), judged, carry or SequentialCarry(), 0.5, TAU_S
+    )
+
+
+def test_a_lost_report_is_not_evidence() -> None:
+    """10-Hz reports, one lost just before two samples 12 σ slow with less current (a dip the stream
+    half missed): with the cap each sample counts at most one observation's worth per observation, and the
+    sample after the lost report stands for the stream's 0.1 s, not the 0.2 s since the last report, so
+    the pair is about two thirds of an observation and no alarm, as it is with no report lost."""
+    rule = SequentialRule(false_alarms_per_100h=1.0, reference_sigmas=2.5, min_observations=1.0)
+    rng = np.random.default_rng(21)
+    t = np.arange(300) * 0.1
+    z = 0.5 * rng.standard_normal((2, 300))
+    z[:, 151:153] = -12.0
+    kept = np.ones(300, dtype=bool)
+    kept[150] = False  # the report before the dip never came
+    announced, _, _ = run_stream(rule, z[:, kept], t[kept], np.ones(kept.sum(), dtype=bool))
+    assert not announced.any()
+    # four samples that deep are more than an observation: named, a lost report before them or not
+    z[:, 153:155] = -12.0
+    announced, _, _ = run_stream(rule, z[:, kept], t[kept], np.ones(kept.sum(), dtype=bool))
+    assert (announced == MotorState.F4_1).any()
+
+
+def test_each_report_stands_for_its_streams_interval() -> None:
+    """Jittered 50-Hz reports with some lost: together they stand for the time they cover, none for more
+    than about its stream's interval; reports in pairs (two per radio packet) each stand for 0.1 s."""
+    rng = np.random.default_rng(23)
+    t = np.cumsum(rng.uniform(0.015, 0.025, 5000))
+    t = t[rng.random(t.size) > 0.03]
+    credit, _ = report_credit(t, SequentialCarry(), 0.5)
+    assert credit.sum() == pytest.approx(t[-1] - t[0], rel=0.01)
+    assert credit.max() < 0.03 and np.diff(t).max() > 0.04
+    pairs = np.repeat(np.arange(200) * 0.2, 2) + np.tile([0.0, 0.001], 200)
+    credit, _ = report_credit(pairs, SequentialCarry(), 0.5)
+    np.testing.assert_allclose(credit[20:], 0.1, rtol=0.01)
+
+
+def test_the_report_credit_carries_across_calls() -> None:
+    """Jittered 50-Hz reports with some lost and some samples not judged: any split into calls gives the
+    alarms and levels of one call."""
+    rng = np.random.default_rng(22)
+    rule = SequentialRule(false_alarms_per_100h=1e5, reference_sigmas=2.0, min_observations=1.0)
+    n = 20000
+    t = np.cumsum(rng.uniform(0.015, 0.025, n))
+    keep = rng.random(n) > 0.03
+    t, z = t[keep], healthy_noise(rng, n)[:, keep]
+    z[:, 8000:9000] += 3.0
+    judged = rng.random(t.size) > 0.2
+    whole, whole_level, _ = run_stream(rule, z, t, judged)
+    cuts = np.sort(rng.choice(np.arange(1, t.size), 80, replace=False))
+    carry, parts, levels = SequentialCarry(), [], []
+    for lo, hi in zip([0, *cuts], [*cuts, t.size]):
+        got, lvl, carry = run_stream(rule, z[:, lo:hi], t[lo:hi], judged[lo:hi], carry)
         parts.append(got)
         levels.append(lvl)
     np.testing.assert_array_equal(np.concatenate(parts), whole)

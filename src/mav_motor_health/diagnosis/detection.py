@@ -15,8 +15,12 @@ The evidence for a direction is how far the sample lies that way, in σ (0 where
 **Test.** For each direction, ``S ← max(0, S + (y − k)·Δt/τ_obs)``: ``y`` the evidence, ``k`` the
 reference (``reference_sigmas``: departures below it are not evidence), ``τ_obs = 2·τ`` with ``τ`` the
 deviations' low-pass time constant at the sample (a low-passed signal gives one independent observation
-per 2τ, so S counts observations, not samples). The direction is announced when S reaches ``h`` and
-stays announced until S has fallen back to 0.
+per 2τ, so S counts observations, not samples). ``Δt`` is the time the sample stands for: each report
+of the motor's stream counts its stream's mean interval (:func:`report_credit`), and a judged sample
+the reports since the last judged one. Over a stream that loses no report that is the time since the
+last judged sample; a lost report's time is spread over the next eight instead of counted whole for the
+one after it (a departure seen once after a lost report was observed once, not twice), and reports that
+arrive in bursts each count the stream's interval, not the burst's. The direction is announced when S reaches ``h`` and stays announced until S has fallen back to 0.
 
 **Threshold.** Under no fault ``z_ω`` and ``z_i`` are taken as independent standard normal (σ is measured
 on the tail of the healthy flight, which makes that hold where it matters), so each direction's evidence
@@ -71,6 +75,7 @@ __all__ = [
     "average_run_length",
     "design_threshold",
     "direction_evidence",
+    "report_credit",
     "sequential_alarms",
 ]
 
@@ -150,13 +155,48 @@ class SequentialRule:
         return design_threshold(self.false_alarms_per_100h / 100.0, self.reference_sigmas, 2.0 * tau_s)
 
 
+#: each report counts the mean of this many intervals of its stream before it (:func:`report_credit`)
+CREDIT_INTERVALS = 8
+
+
 @dataclass(frozen=True)
 class SequentialCarry:
-    """Each direction's CUSUM, whether it is announced, and the last judged sample's time."""
+    """Each direction's CUSUM, whether it is announced, and the last judged sample's time; the motor's
+    report stream: its last report's time, its last intervals, and the time its reports since the last
+    judged sample stand for (:func:`report_credit`)."""
 
     sums: tuple[float, ...] = (0.0,) * len(DIRECTIONS)
     alarmed: tuple[bool, ...] = (False,) * len(DIRECTIONS)
     last_s: float = -math.inf
+    stream_s: float = -math.inf
+    intervals: tuple[float, ...] = (math.inf,) * CREDIT_INTERVALS
+    credit_s: float = 0.0
+
+
+def report_credit(
+    time_s: NDArray[np.float64], carry: SequentialCarry, max_gap_s: float
+) -> tuple[NDArray[np.float64], tuple[float, ...]]:
+    """The time each report of a motor's stream stands for [s], and the stream's last intervals to carry.
+
+    A report stands for the mean of the :data:`CREDIT_INTERVALS` intervals of the stream before it (the
+    carried ones first), those longer than ``max_gap_s`` left out (a pause in the telemetry, after which
+    the sums start afresh anyway); with none yet, its own interval if not longer than that, else 0.
+    Summed over a stretch of reports, that is the stretch's time when no report was lost; a lost report's
+    time is spread thinly over the next reports instead of counting once more for the one after it, and
+    reports that arrive in bursts (two per radio packet) each count the stream's interval."""
+    d = np.diff(time_s, prepend=carry.stream_s)
+    history = np.concatenate([np.asarray(carry.intervals, dtype=float), d])
+    valid = history <= max_gap_s
+    total = np.concatenate([[0.0], np.cumsum(np.where(valid, history, 0.0))])
+    count = np.concatenate([[0], np.cumsum(valid)])
+    k, n = CREDIT_INTERVALS, d.size
+    # the window of the k intervals before report j: history[j : j + k]
+    window_s = total[k : k + n] - total[:n]
+    window_n = count[k : k + n] - count[:n]
+    own = np.where(d <= max_gap_s, d, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        credit = np.where(window_n > 0, window_s / np.maximum(window_n, 1), own)
+    return credit, tuple(float(x) for x in history[-k:])
 
 
 def _max_of_two_half_normals(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -263,6 +303,10 @@ def sequential_alarms(
     sums = np.array(carry.sums, dtype=float)
     alarmed = np.array(carry.alarmed, dtype=bool)
     last_s = carry.last_s
+    # the time the reports stand for, summed from the last judged sample (carried) on
+    credit, intervals = report_credit(t, carry, max_gap_s)
+    credit_sum = carry.credit_s + np.cumsum(credit)
+    credit_s = float(credit_sum[-1] - (credit_sum[idx[-1]] if idx.size else 0.0))
     # the state at each sample: that of the last judged sample at or before it (the carry's before any)
     s_at = np.tile(sums[:, None], (1, n))
     a_at = np.tile(alarmed[:, None], (1, n))
@@ -270,7 +314,8 @@ def sequential_alarms(
         tj = t[idx]
         dt = np.diff(tj, prepend=last_s)
         fresh = ~(dt <= max_gap_s)  # a gap (or the first sample ever): the sums start afresh
-        dt = np.where(fresh, 0.0, dt)
+        # each judged sample stands for the reports since the one before (:func:`report_credit`)
+        dt = np.where(fresh, 0.0, np.diff(credit_sum[idx], prepend=0.0))
         steps = (np.minimum(evidence[:, idx], rule.evidence_caps(h)) - k) * (
             dt / np.asarray(observation_s, dtype=float)[idx]
         )
@@ -305,7 +350,12 @@ def sequential_alarms(
     announced = np.where(any_alarm, codes[strongest], MotorState.NORMAL).astype(np.int8)
     level = (s_at / h).max(axis=0)
     new = SequentialCarry(
-        sums=tuple(float(x) for x in sums), alarmed=tuple(bool(x) for x in alarmed), last_s=last_s
+        sums=tuple(float(x) for x in sums),
+        alarmed=tuple(bool(x) for x in alarmed),
+        last_s=last_s,
+        stream_s=float(t[-1]),
+        intervals=intervals,
+        credit_s=credit_s,
     )
     return announced, level, new
 
