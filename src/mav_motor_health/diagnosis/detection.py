@@ -20,7 +20,8 @@ of the motor's stream counts its stream's mean interval (:func:`report_credit`),
 the reports since the last judged one. Over a stream that loses no report that is the time since the
 last judged sample; a lost report's time is spread over the next eight instead of counted whole for the
 one after it (a departure seen once after a lost report was observed once, not twice), and reports that
-arrive in bursts each count the stream's interval, not the burst's. The direction is announced when S reaches ``h`` and stays announced until S has fallen back to 0.
+arrive in bursts each count the stream's interval, not the burst's. The direction is announced when S
+reaches ``h`` and stays announced until S has fallen back to 0.
 
 **Threshold.** Under no fault ``z_ω`` and ``z_i`` are taken as independent standard normal (σ is measured
 on the tail of the healthy flight, which makes that hold where it matters), so each direction's evidence
