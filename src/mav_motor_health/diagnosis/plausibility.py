@@ -157,9 +157,13 @@ def stuck_mask_rows(
     fill = np.array(
         [[0.5 * (c.command_max + c.command_min) if np.isfinite(c.command_max) else 0.0] for c in carries]
     )
-    idx = np.maximum.accumulate(np.where(np.isfinite(command), positions, -1), axis=1)
-    c = np.where(idx >= 0, np.take_along_axis(command, np.maximum(idx, 0), axis=1), fill)
-    c = np.clip(c, 0.0, 1.0)
+    finite = np.isfinite(command)
+    if finite.all():  # nothing to fill (a log's commands, mostly): each sample holds its own
+        c = np.clip(command, 0.0, 1.0)
+    else:
+        idx = np.maximum.accumulate(np.where(finite, positions, -1), axis=1)
+        c = np.where(idx >= 0, np.take_along_axis(command, np.maximum(idx, 0), axis=1), fill)
+        c = np.clip(c, 0.0, 1.0)
     change = ~(v == previous(v, [k.value for k in carries]))  # NaN never equals: a new segment
     seg = np.cumsum(change, axis=1)  # segment 0 continues the carried one
     since = np.where(change, t, np.nan)
@@ -361,20 +365,14 @@ class CurrentSumCheck:
         self, t: NDArray[np.float64], m: NDArray[np.int64], i: NDArray[np.float64]
     ) -> NDArray[np.float64]:
         total = np.zeros(t.shape)
-        positions = np.arange(t.size)
         finite = np.isfinite(i)
-        last = np.empty(t.size, dtype=positions.dtype)
         for k, number in enumerate(self.motors):
-            own = (m == number) & finite
-            # the position of the motor's latest reading at or before each row (−1: none in this call)
-            np.copyto(last, -1)
-            np.copyto(last, positions, where=own)
-            np.maximum.accumulate(last, out=last)
-            if t.size and last[0] >= 0:  # a reading from the first row on: no carried one needed
-                held = i.take(last)
-            else:
-                held = np.where(last >= 0, i[np.maximum(last, 0)], self.latest[k])
-            total += held  # NaN until this motor has reported: no sum yet
-            if t.size and last[-1] >= 0:
-                self.latest[k] = i[last[-1]]
+            # the motor's readings in this call: each is its latest from its row up to the next one's
+            own = np.flatnonzero((m == number) & finite)
+            if own.size == 0:
+                total += self.latest[k]  # NaN until this motor has reported: no sum yet
+                continue
+            total[: own[0]] += self.latest[k]  # before its first reading: the carried one
+            total[own[0] :] += np.repeat(i[own], np.diff(own, append=t.size))
+            self.latest[k] = i[own[-1]]
         return total
