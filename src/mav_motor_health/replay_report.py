@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import html
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -324,13 +324,18 @@ def _chart(
     t: NDArray[np.float64],
     measured: NDArray[np.float64],
     model: NDArray[np.float64],
-    half: NDArray[np.float64] | float,
+    half: NDArray[np.float64] | float | Callable[[NDArray[np.int64]], NDArray[np.float64]],
     t0: float,
     t1: float,
 ) -> str:
+    """A chart of at most :data:`MAX_POINTS` samples; ``half`` the band's half-width: a number, one per
+    sample, or a function giving it at the samples drawn (worked out for those only)."""
     idx = _thin(len(t))
     tt, mm, md = t[idx], measured[idx], model[idx]
-    hw = np.broadcast_to(np.asarray(half, dtype=float), t.shape)[idx]
+    if callable(half):
+        hw = np.asarray(half(idx), dtype=float)
+    else:
+        hw = np.broadcast_to(np.asarray(half, dtype=float), t.shape)[idx]
     values = np.concatenate(
         [mm[np.isfinite(mm)], (md + hw)[np.isfinite(md + hw)], (md - hw)[np.isfinite(md - hw)]]
     )
@@ -356,6 +361,18 @@ def _chart(
     )
     parts.append("</svg>")
     return "".join(parts)
+
+
+def _halfwidth_at(
+    profile: ThresholdProfile, voltage_v: NDArray[np.float64]
+) -> Callable[[NDArray[np.int64]], NDArray[np.float64]]:
+    """The profile's current half-width at the samples a chart draws (it is one per sample, at that
+    sample's voltage: worked out for the drawn ones only)."""
+
+    def at(drawn: NDArray[np.int64]) -> NDArray[np.float64]:
+        return profile.current_halfwidth_a(voltage_v[drawn])
+
+    return at
 
 
 def _legend() -> str:
@@ -467,7 +484,7 @@ def render_report(
                 t,
                 result["current_a"][sel],
                 result["current_model_a"][sel],
-                profile.current_halfwidth_a(voltage),
+                _halfwidth_at(profile, voltage),
                 t0,
                 t1,
             )
