@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -270,6 +271,8 @@ class SumCarry:
     start_s: float = float("nan")
 
 
+#: no rows (a motor without any in a call)
+_NO_ROWS = np.zeros(0, dtype=np.intp)
 #: the sum is judged once its averages hold this share of ``sum_tau_s``
 SUM_MIN_SHARE = 0.2
 #: up to this many rows (the live agent's batches) the sums are formed row by row
@@ -332,12 +335,14 @@ class CurrentSumCheck:
         motor: ArrayLike,
         esc_current_a: ArrayLike,
         battery_current_a: ArrayLike,
+        motor_rows: Mapping[int, NDArray[np.intp]] | None = None,
     ) -> NDArray[np.bool_]:
-        """Whether the sum disagrees with the battery at each row (rows in time order)."""
+        """Whether the sum disagrees with the battery at each row (rows in time order). ``motor_rows``:
+        each motor's rows (increasing) where the caller knows them (then not searched for)."""
         t = np.asarray(time_s, dtype=float)
         m = np.asarray(motor, dtype=np.int64)
         i = np.asarray(esc_current_a, dtype=float)
-        total = self._sums(m, i) if t.size <= _SUM_LOOP_MAX else self._sums_vectorised(t, m, i)
+        total = self._sums(m, i) if t.size <= _SUM_LOOP_MAX else self._sums_vectorised(t, m, i, motor_rows)
         # the two averages start together: each only where both are known
         battery = np.asarray(battery_current_a, dtype=float)
         known = np.isfinite(total) & np.isfinite(battery)
@@ -362,13 +367,21 @@ class CurrentSumCheck:
         return total
 
     def _sums_vectorised(
-        self, t: NDArray[np.float64], m: NDArray[np.int64], i: NDArray[np.float64]
+        self,
+        t: NDArray[np.float64],
+        m: NDArray[np.int64],
+        i: NDArray[np.float64],
+        motor_rows: Mapping[int, NDArray[np.intp]] | None = None,
     ) -> NDArray[np.float64]:
         total = np.zeros(t.shape)
         finite = np.isfinite(i)
         for k, number in enumerate(self.motors):
             # the motor's readings in this call: each is its latest from its row up to the next one's
-            own = np.flatnonzero((m == number) & finite)
+            if motor_rows is None:
+                own = np.flatnonzero((m == number) & finite)
+            else:
+                rows = motor_rows.get(number, _NO_ROWS)
+                own = rows[finite[rows]]
             if own.size == 0:
                 total += self.latest[k]  # NaN until this motor has reported: no sum yet
                 continue
