@@ -263,6 +263,7 @@ def read_messages(
     out.first_time_us = int(stamps[0])
     ids = msgid[chain]
     uniq, counts = distinct(ids)
+    present = set(uniq.tolist())
     for mid, n in zip(uniq.tolist(), counts.tolist()):
         spec = by_id.get(mid)
         out.counts[spec.name if spec else f"MSG{mid}"] = n
@@ -270,7 +271,8 @@ def read_messages(
         spec = by_name.get(name)
         if spec is None:
             continue
-        sel = np.flatnonzero(ids == spec.msgid)
+        # (a message the log does not have: no search through the records for it)
+        sel = np.flatnonzero(ids == spec.msgid) if spec.msgid in present else np.zeros(0, dtype=np.intp)
         rows = chain[sel]
         payload = payloads(spec, rows)
         out.messages[name] = payload.view(spec.dtype).ravel()
