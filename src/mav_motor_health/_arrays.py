@@ -1,8 +1,10 @@
-"""Two numpy functions of the diagnosis core's hot path in fewer numpy calls, with the same results.
+"""Numpy functions of hot paths in fewer or cheaper numpy calls, with the same results.
 
 The live agent calls the core with a few samples at a time, where numpy's own Python-level wrappers cost
 more than the arithmetic: :func:`numpy.nan_to_num` (a dozen calls inside) and :func:`numpy.isin` (a sort
 or a table) take ten to fifteen microseconds on a handful of values. These give the same arrays.
+:func:`distinct` is :func:`numpy.unique` of small integer codes (message ids, lengths, motor numbers),
+counted instead of hashed and sorted: a whole log's codes in one pass.
 """
 
 from __future__ import annotations
@@ -12,7 +14,10 @@ from collections.abc import Iterable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["nan_to_zero", "one_of"]
+__all__ = ["distinct", "nan_to_zero", "one_of"]
+
+#: codes below this are counted by :func:`distinct` (a table of this many counts at most)
+DISTINCT_COUNTED = 1 << 16
 
 
 def nan_to_zero(values: ArrayLike) -> NDArray:
@@ -33,3 +38,15 @@ def one_of(values: ArrayLike, codes: Iterable[int]) -> NDArray[np.bool_]:
     for code in codes:
         out |= x == code
     return out
+
+
+def distinct(values: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """``numpy.unique(values, return_counts=True)`` of integers (1-D) as int64: where every value is in
+    0 … :data:`DISTINCT_COUNTED` − 1, counted (one pass, no sort)."""
+    x = np.asarray(values)
+    if x.size and x.dtype.kind in "iu" and int(x.min()) >= 0 and int(x.max()) < DISTINCT_COUNTED:
+        counts = np.bincount(x)
+        present = np.flatnonzero(counts)
+        return present.astype(np.int64), counts[present].astype(np.int64)
+    uniq, counts = np.unique(x, return_counts=True)
+    return uniq.astype(np.int64), counts.astype(np.int64)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import html
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -93,10 +93,73 @@ class _Axes:
         return self.top + (self.y1 - np.asarray(v)) / (self.y1 - self.y0) * self.height
 
 
+#: :func:`_decimal_cells` formats magnitudes below this (beyond: Python's own formatting)
+_CELL_MAX = 1e7
+#: scaled values this close to a tie (….5) are left to Python's own formatting (see the function)
+_TIE_MARGIN = 1e-6
+_ZERO = ord("0")
+
+
+def _decimal_cells(values: NDArray[np.float64], decimals: int = 1) -> NDArray[np.uint8] | None:
+    """Each value as ``f"{value:.{decimals}f}"`` writes it (1 or 2 decimals), one row of ASCII bytes per
+    value, padded with 0 bytes (the sign first, the digits at the end of the row: the text once the 0 bytes
+    are removed). None where a value is not finite, not below :data:`_CELL_MAX` or within
+    :data:`_TIE_MARGIN` of a tie once scaled: Python rounds the exact binary value half to even, and the
+    scaled value (below 1e9) is within 1e-7 of the exact product, so away from ties rounding it gives
+    Python's digits."""
+    size = np.abs(values)
+    if not (np.isfinite(size).all() and (size < _CELL_MAX).all()):
+        return None
+    scaled = size * float(10**decimals)
+    floor = np.floor(scaled)
+    if (np.abs(scaled - floor - 0.5) < _TIE_MARGIN).any():
+        return None
+    whole, fraction = np.divmod((floor + (scaled - floor > 0.5)).astype(np.int64), 10**decimals)
+    digits = len(str(int(whole.max(initial=0))))
+    powers = 10 ** np.arange(digits - 1, -1, -1, dtype=np.int64)
+    cells = np.zeros((len(values), 2 + digits + decimals), dtype=np.uint8)
+    cells[:, 0] = np.where(np.signbit(values), ord("-"), 0)  # -0.0 and -0.04 too: "-0.0"
+    shown = (whole[:, None] >= powers) | (powers == 1)  # no leading zeros; a lone 0 stays
+    cells[:, 1 : 1 + digits] = np.where(shown, _ZERO + whole[:, None] // powers % 10, 0)
+    cells[:, 1 + digits] = ord(".")
+    tenths = 10 ** np.arange(decimals - 1, -1, -1, dtype=np.int64)
+    cells[:, 2 + digits :] = _ZERO + fraction[:, None] // tenths % 10
+    return cells
+
+
+def _text_of(rows: list[NDArray[np.uint8]]) -> str:
+    """Equally long byte tables side by side, row after row, as text (0 bytes dropped)."""
+    return np.hstack(rows).tobytes().translate(None, b"\0").decode("utf-8")
+
+
+def _constant(text: str, rows: int) -> NDArray[np.uint8]:
+    """``text`` (UTF-8) in every row."""
+    return np.tile(np.frombuffer(text.encode("utf-8"), dtype=np.uint8), (rows, 1))
+
+
+def _text_table(texts: Sequence[str]) -> NDArray[np.uint8]:
+    """Texts as UTF-8 bytes, one row each, padded with 0 bytes to the longest."""
+    encoded = [text.encode("utf-8") for text in texts]
+    table = np.zeros((len(encoded), max(map(len, encoded), default=0)), dtype=np.uint8)
+    for row, text in zip(table, encoded):
+        row[: len(text)] = np.frombuffer(text, dtype=np.uint8)
+    return table
+
+
 def _path(xs: NDArray[np.float64], ys: NDArray[np.float64]) -> str:
-    """An SVG path through the points, broken where a value is missing (one ``%`` format per stretch)."""
+    """An SVG path through the points, broken where a value is missing: ``M`` then ``L`` points with one
+    decimal each, formatted for all points at once (:func:`_decimal_cells`; else one ``%`` format per
+    stretch)."""
     ok = np.isfinite(xs) & np.isfinite(ys)
     edges = np.flatnonzero(np.diff(np.concatenate(([False], ok, [False])).astype(np.int8)))
+    if not len(edges):
+        return ""
+    x_cells, y_cells = _decimal_cells(xs[ok]), _decimal_cells(ys[ok])
+    if x_cells is not None and y_cells is not None:
+        lengths = edges[1::2] - edges[::2]
+        move = np.full((len(x_cells), 1), ord("L"), dtype=np.uint8)
+        move[np.concatenate(([0], np.cumsum(lengths)[:-1]))] = ord("M")  # each stretch's first point
+        return _text_of([move, x_cells, _constant(",", len(x_cells)), y_cells])
     parts: list[str] = []
     for start, stop in zip(edges[::2].tolist(), edges[1::2].tolist()):
         points = np.column_stack([xs[start:stop], ys[start:stop]]).ravel().tolist()
@@ -105,18 +168,26 @@ def _path(xs: NDArray[np.float64], ys: NDArray[np.float64]) -> str:
 
 
 def _band(xs: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64]) -> str:
+    """The band's outline, ``x,y`` points with one decimal each separated by spaces: along the top, back
+    along the bottom."""
     ok = np.isfinite(xs) & np.isfinite(lo) & np.isfinite(hi)
     if ok.sum() < 2:
         return ""
     x, a, b = xs[ok], lo[ok], hi[ok]
     outline = np.column_stack([np.concatenate([x, x[::-1]]), np.concatenate([b, a[::-1]])])
+    x_cells, y_cells = _decimal_cells(outline[:, 0]), _decimal_cells(outline[:, 1])
+    if x_cells is not None and y_cells is not None:
+        return _text_of([x_cells, _constant(",", len(outline)), y_cells, _constant(" ", len(outline))])[:-1]
     return " ".join(["%.1f,%.1f"] * len(outline)) % tuple(outline.ravel().tolist())
 
 
 def _thin(n: int) -> NDArray[np.int64]:
     if n <= MAX_POINTS:
         return np.arange(n)
-    return np.unique(np.linspace(0, n - 1, MAX_POINTS).astype(np.int64))
+    picked = np.linspace(0, n - 1, MAX_POINTS).astype(np.int64)
+    if (picked[1:] < picked[:-1]).any():  # (linspace does not go back: never, but then numpy's own)
+        return np.unique(picked)
+    return picked[np.concatenate(([True], picked[1:] != picked[:-1]))]  # in order: repeats dropped
 
 
 def _runs(t: NDArray[np.float64], codes: NDArray[np.int64], t_end: float) -> list[tuple[float, float, int]]:
@@ -155,6 +226,9 @@ def _ribbon(
         return ""
     starts = np.array([r[0] for r in runs])
     stops = np.array([r[1] for r in runs])
+    fast = _ribbon_text(axes.x(starts), axes.x(stops), starts, stops, [r[2] for r in runs], y, h)
+    if fast is not None:
+        return fast
     x0s, x1s = axes.x(starts).tolist(), axes.x(stops).tolist()
     looks: dict[int, tuple[str, str]] = {}  # each state's colour and label, looked up once
     for (start, stop, code), x0, x1 in zip(runs, x0s, x1s):
@@ -165,6 +239,72 @@ def _ribbon(
             f'<rect x="{x0:.1f}" y="{y:.1f}" width="{max(x1 - x0, 0.6):.1f}" height="{h}" '
             f'fill="{colour}"><title>{label} '
             f"{start:.2f}–{stop:.2f} s</title></rect>"
+        )
+    return "".join(rects)
+
+
+def _ribbon_text(
+    x0s: NDArray[np.float64],
+    x1s: NDArray[np.float64],
+    starts: NDArray[np.float64],
+    stops: NDArray[np.float64],
+    codes: list[int],
+    y: float,
+    h: float,
+) -> str | None:
+    """:func:`_ribbon`'s rectangles, formatted for all runs at once (:func:`_decimal_cells`); None where a
+    number needs Python's own formatting."""
+    widths = np.maximum(x1s - x0s, 0.6)
+    cells = [_decimal_cells(x0s), _decimal_cells(widths), _decimal_cells(starts, 2), _decimal_cells(stops, 2)]
+    if any(c is None for c in cells):
+        return None
+    x0c, wc, sc, ec = cells
+    states = sorted(set(codes))  # each state's colour and label, looked up once
+    looks = _text_table(
+        [f'fill="{STATE_COLOURS[MotorState(code)]}"><title>{MotorState(code).label} ' for code in states]
+    )
+    look = looks[np.searchsorted(states, codes)]
+    n = len(codes)
+    return _text_of(
+        [
+            _constant('<rect x="', n),
+            x0c,  # type: ignore[list-item]
+            _constant(f'" y="{y:.1f}" width="', n),
+            wc,  # type: ignore[list-item]
+            _constant(f'" height="{h}" ', n),
+            look,
+            sc,  # type: ignore[list-item]
+            _constant("–", n),
+            ec,  # type: ignore[list-item]
+            _constant(" s</title></rect>", n),
+        ]
+    )
+
+
+def _steady_rects(axes: _Axes, t: NDArray[np.float64], steady: NDArray[np.int64], t_end: float) -> str:
+    """The grey rectangles of the steady runs (per pixel), formatted for all runs at once where
+    :func:`_decimal_cells` can, else one by one."""
+    runs = [(start, stop) for start, stop, code in _runs(*_per_pixel(axes, t, steady), t_end) if code]
+    if not runs:
+        return ""
+    ends = axes.x(np.array(runs))  # (runs, 2): the same numbers as one run at a time
+    x0c, wc = _decimal_cells(ends[:, 0]), _decimal_cells(np.maximum(ends[:, 1] - ends[:, 0], 0.6))
+    if x0c is not None and wc is not None:
+        n = len(runs)
+        return _text_of(
+            [
+                _constant('<rect x="', n),
+                x0c,
+                _constant('" y="24" width="', n),
+                wc,
+                _constant('" height="10" fill="#78909c"/>', n),
+            ]
+        )
+    rects = []
+    for start, stop in runs:
+        x0, x1 = axes.x(np.array([start, stop]))
+        rects.append(
+            f'<rect x="{x0:.1f}" y="24" width="{max(x1 - x0, 0.6):.1f}" height="10" fill="#78909c"/>'
         )
     return "".join(rects)
 
@@ -184,13 +324,18 @@ def _chart(
     t: NDArray[np.float64],
     measured: NDArray[np.float64],
     model: NDArray[np.float64],
-    half: NDArray[np.float64] | float,
+    half: NDArray[np.float64] | float | Callable[[NDArray[np.int64]], NDArray[np.float64]],
     t0: float,
     t1: float,
 ) -> str:
+    """A chart of at most :data:`MAX_POINTS` samples; ``half`` the band's half-width: a number, one per
+    sample, or a function giving it at the samples drawn (worked out for those only)."""
     idx = _thin(len(t))
     tt, mm, md = t[idx], measured[idx], model[idx]
-    hw = np.broadcast_to(np.asarray(half, dtype=float), t.shape)[idx]
+    if callable(half):
+        hw = np.asarray(half(idx), dtype=float)
+    else:
+        hw = np.broadcast_to(np.asarray(half, dtype=float), t.shape)[idx]
     values = np.concatenate(
         [mm[np.isfinite(mm)], (md + hw)[np.isfinite(md + hw)], (md - hw)[np.isfinite(md - hw)]]
     )
@@ -216,6 +361,18 @@ def _chart(
     )
     parts.append("</svg>")
     return "".join(parts)
+
+
+def _halfwidth_at(
+    profile: ThresholdProfile, voltage_v: NDArray[np.float64]
+) -> Callable[[NDArray[np.int64]], NDArray[np.float64]]:
+    """The profile's current half-width at the samples a chart draws (it is one per sample, at that
+    sample's voltage: worked out for the drawn ones only)."""
+
+    def at(drawn: NDArray[np.int64]) -> NDArray[np.float64]:
+        return profile.current_halfwidth_a(voltage_v[drawn])
+
+    return at
 
 
 def _legend() -> str:
@@ -327,7 +484,7 @@ def render_report(
                 t,
                 result["current_a"][sel],
                 result["current_model_a"][sel],
-                profile.current_halfwidth_a(voltage),
+                _halfwidth_at(profile, voltage),
                 t0,
                 t1,
             )
@@ -338,13 +495,7 @@ def render_report(
         rib.append(f'<text x="{LEFT - 6}" y="14" text-anchor="end">state</text>')
         rib.append(_ribbon(axes, t, result["state"][sel].astype(np.int64), 3, 14, t1))
         rib.append(f'<text x="{LEFT - 6}" y="33" text-anchor="end">steady</text>')
-        t_steady, steady = _per_pixel(axes, t, result["steady"][sel].astype(np.int64))
-        for start, stop, code in _runs(t_steady, steady, t1):
-            if code:
-                x0, x1 = axes.x(np.array([start, stop]))
-                rib.append(
-                    f'<rect x="{x0:.1f}" y="24" width="{max(x1 - x0, 0.6):.1f}" height="10" fill="#78909c"/>'
-                )
+        rib.append(_steady_rects(axes, t, result["steady"][sel].astype(np.int64), t1))
         rib.append("</svg>")
         out.append("".join(rib))
     if events:

@@ -111,13 +111,7 @@ def announce(
         if slope is not None:
             need = need + slope[run_of] * nan_to_zero(np.asarray(activity, dtype=float)[idx])
         candidates = _runs_near_hold(weighted, need, starts, ends, held_carried)
-        first_reached = np.full(starts.size, -1, dtype=np.int64)
-        for r in candidates.tolist():
-            start, end = int(starts[r]), int(ends[r])
-            held = (held_carried if r == 0 else 0.0) + np.cumsum(weighted[start:end])
-            found = np.flatnonzero(held >= need[start:end])
-            if found.size:
-                first_reached[r] = start + int(found[0])
+        first_reached = _first_held(weighted, need, starts, ends, held_carried, candidates)
         last_start = int(starts[-1])
         held_last = float(
             ((held_carried if starts.size == 1 else 0.0) + np.cumsum(weighted[last_start:]))[-1]
@@ -228,6 +222,47 @@ def _first_true_per_run(
     if found is None:
         return np.full(starts.size, -1, dtype=np.int64)
     return np.where((found >= 0) & (found < ends), found, -1)
+
+
+#: :func:`_first_held` lays the candidate runs out side by side up to this many values (beyond: run by run)
+_HELD_LAYOUT_MAX = 1 << 18
+
+
+def _first_held(
+    weighted: NDArray[np.float64],
+    need: NDArray[np.float64],
+    starts: NDArray[np.int64],
+    ends: NDArray[np.int64],
+    held_carried: float,
+    candidates: NDArray[np.int64],
+) -> NDArray[np.int64]:
+    """Per run, the first sample where its hold Σ rate·Δt (the first run's after the carried hold) reaches
+    ``need`` (-1: none), worked out for the ``candidates`` only: each one's own cumulative sum, the
+    candidates laid out in rows (padded with zeros after their samples: a row's sums up to its last sample
+    are its run's own) where that is small, else run by run."""
+    first_reached = np.full(starts.size, -1, dtype=np.int64)
+    if candidates.size == 0:
+        return first_reached
+    begin, lengths = starts[candidates], ends[candidates] - starts[candidates]
+    width = int(lengths.max())
+    if candidates.size * width > _HELD_LAYOUT_MAX:
+        for r in candidates.tolist():
+            start, end = int(starts[r]), int(ends[r])
+            held = (held_carried if r == 0 else 0.0) + np.cumsum(weighted[start:end])
+            found = np.flatnonzero(held >= need[start:end])
+            if found.size:
+                first_reached[r] = start + int(found[0])
+        return first_reached
+    column = np.arange(width)
+    inside = column < lengths[:, None]
+    at = np.where(inside, begin[:, None] + column, 0)
+    held = np.cumsum(np.where(inside, weighted[at], 0.0), axis=1)
+    if candidates[0] == 0:
+        held[0] = held_carried + held[0]
+    reached = inside & (held >= need[at])
+    some = reached.any(axis=1)
+    first_reached[candidates[some]] = begin[some] + np.argmax(reached[some], axis=1)
+    return first_reached
 
 
 def _runs_near_hold(

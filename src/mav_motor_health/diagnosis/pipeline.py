@@ -274,7 +274,10 @@ _RESULT_COLUMNS = (
 
 
 def _current_sum_flags(
-    table: TelemetryTable, profile: ThresholdProfile, by_time: NDArray[np.intp] | None = None
+    table: TelemetryTable,
+    profile: ThresholdProfile,
+    by_time: NDArray[np.intp] | None = None,
+    motor_rows: Mapping[int, NDArray[np.intp]] | None = None,
 ) -> NDArray[np.int16] | None:
     """CURRENT_SUM flags per row where the ESC currents' sum disagrees with the battery monitor; none where
     the table's calibration says the vehicle's ESCs and battery monitor are not related
@@ -286,10 +289,27 @@ def _current_sum_flags(
         return None
     order = np.argsort(table["time_s"], kind="stable") if by_time is None else by_time
     check = CurrentSumCheck(profile.plausibility, table.motors())
-    mismatch = check.update(table["time_s"][order], table["motor"][order], esc[order], battery[order])
+    mismatch = check.update(
+        table["time_s"][order], table["motor"][order], esc[order], battery[order], motor_rows
+    )
     flags = np.zeros(len(table), dtype=np.int16)
     flags[order[mismatch]] = SensorIssue.CURRENT_SUM
     return flags
+
+
+def _motor_rows_in_time(
+    motor: NDArray[np.int64], by_time: NDArray[np.intp]
+) -> dict[int, NDArray[np.intp]] | None:
+    """Each motor's rows in the time order ``by_time`` (a stable sort by time of a table by motor, then
+    time), increasing: where its block of the table went (the inverse of the sort, cut by motor). None
+    where the table is not grouped by motor."""
+    if len(motor) == 0 or not (motor[1:] >= motor[:-1]).all():
+        return None
+    position = np.empty(len(motor), dtype=np.intp)
+    position[by_time] = np.arange(len(motor))
+    starts = np.flatnonzero(np.concatenate(([True], motor[1:] != motor[:-1])))
+    ends = np.append(starts[1:], len(motor))
+    return {int(motor[a]): position[a:b] for a, b in zip(starts.tolist(), ends.tolist())}
 
 
 def diagnose(
@@ -314,7 +334,8 @@ def diagnose(
     # rows in the order the live agent receives them (time, then motor number within one message): the
     # table is by motor, then time, so a stable sort by time alone gives that order
     by_time = np.argsort(ordered["time_s"], kind="stable")
-    sum_flags = _current_sum_flags(ordered, profile, by_time)
+    in_time = _motor_rows_in_time(ordered["motor"], by_time)
+    sum_flags = _current_sum_flags(ordered, profile, by_time, in_time)
     n = len(ordered)
     out: dict[str, NDArray] = {
         "state": np.zeros(n, dtype=np.int8),
@@ -403,7 +424,11 @@ def diagnose(
     order = by_time
     vehicle_fit = np.zeros(n, dtype=np.int8)
     vehicle_fit[order] = check.update(
-        ordered["time_s"][order], motors[order], omega_all[order], out["omega_model_rad_s"][order]
+        ordered["time_s"][order],
+        motors[order],
+        omega_all[order],
+        out["omega_model_rad_s"][order],
+        in_time,
     )
     out["announced"] = apply_vehicle_fit(out["announced"], vehicle_fit)
     final = int(vehicle_fit[order[-1]]) if n else VehicleFit.FITS

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -157,9 +158,13 @@ def stuck_mask_rows(
     fill = np.array(
         [[0.5 * (c.command_max + c.command_min) if np.isfinite(c.command_max) else 0.0] for c in carries]
     )
-    idx = np.maximum.accumulate(np.where(np.isfinite(command), positions, -1), axis=1)
-    c = np.where(idx >= 0, np.take_along_axis(command, np.maximum(idx, 0), axis=1), fill)
-    c = np.clip(c, 0.0, 1.0)
+    finite = np.isfinite(command)
+    if finite.all():  # nothing to fill (a log's commands, mostly): each sample holds its own
+        c = np.clip(command, 0.0, 1.0)
+    else:
+        idx = np.maximum.accumulate(np.where(finite, positions, -1), axis=1)
+        c = np.where(idx >= 0, np.take_along_axis(command, np.maximum(idx, 0), axis=1), fill)
+        c = np.clip(c, 0.0, 1.0)
     change = ~(v == previous(v, [k.value for k in carries]))  # NaN never equals: a new segment
     seg = np.cumsum(change, axis=1)  # segment 0 continues the carried one
     since = np.where(change, t, np.nan)
@@ -266,6 +271,8 @@ class SumCarry:
     start_s: float = float("nan")
 
 
+#: no rows (a motor without any in a call)
+_NO_ROWS = np.zeros(0, dtype=np.intp)
 #: the sum is judged once its averages hold this share of ``sum_tau_s``
 SUM_MIN_SHARE = 0.2
 #: up to this many rows (the live agent's batches) the sums are formed row by row
@@ -328,12 +335,14 @@ class CurrentSumCheck:
         motor: ArrayLike,
         esc_current_a: ArrayLike,
         battery_current_a: ArrayLike,
+        motor_rows: Mapping[int, NDArray[np.intp]] | None = None,
     ) -> NDArray[np.bool_]:
-        """Whether the sum disagrees with the battery at each row (rows in time order)."""
+        """Whether the sum disagrees with the battery at each row (rows in time order). ``motor_rows``:
+        each motor's rows (increasing) where the caller knows them (then not searched for)."""
         t = np.asarray(time_s, dtype=float)
         m = np.asarray(motor, dtype=np.int64)
         i = np.asarray(esc_current_a, dtype=float)
-        total = self._sums(m, i) if t.size <= _SUM_LOOP_MAX else self._sums_vectorised(t, m, i)
+        total = self._sums(m, i) if t.size <= _SUM_LOOP_MAX else self._sums_vectorised(t, m, i, motor_rows)
         # the two averages start together: each only where both are known
         battery = np.asarray(battery_current_a, dtype=float)
         known = np.isfinite(total) & np.isfinite(battery)
@@ -358,23 +367,25 @@ class CurrentSumCheck:
         return total
 
     def _sums_vectorised(
-        self, t: NDArray[np.float64], m: NDArray[np.int64], i: NDArray[np.float64]
+        self,
+        t: NDArray[np.float64],
+        m: NDArray[np.int64],
+        i: NDArray[np.float64],
+        motor_rows: Mapping[int, NDArray[np.intp]] | None = None,
     ) -> NDArray[np.float64]:
         total = np.zeros(t.shape)
-        positions = np.arange(t.size)
         finite = np.isfinite(i)
-        last = np.empty(t.size, dtype=positions.dtype)
         for k, number in enumerate(self.motors):
-            own = (m == number) & finite
-            # the position of the motor's latest reading at or before each row (−1: none in this call)
-            np.copyto(last, -1)
-            np.copyto(last, positions, where=own)
-            np.maximum.accumulate(last, out=last)
-            if t.size and last[0] >= 0:  # a reading from the first row on: no carried one needed
-                held = i.take(last)
+            # the motor's readings in this call: each is its latest from its row up to the next one's
+            if motor_rows is None:
+                own = np.flatnonzero((m == number) & finite)
             else:
-                held = np.where(last >= 0, i[np.maximum(last, 0)], self.latest[k])
-            total += held  # NaN until this motor has reported: no sum yet
-            if t.size and last[-1] >= 0:
-                self.latest[k] = i[last[-1]]
+                rows = motor_rows.get(number, _NO_ROWS)
+                own = rows[finite[rows]]
+            if own.size == 0:
+                total += self.latest[k]  # NaN until this motor has reported: no sum yet
+                continue
+            total[: own[0]] += self.latest[k]  # before its first reading: the carried one
+            total[own[0] :] += np.repeat(i[own], np.diff(own, append=t.size))
+            self.latest[k] = i[own[-1]]
         return total

@@ -251,14 +251,15 @@ def classify_depth(
     ):
         return state, depth
     with np.errstate(invalid="ignore"):
-        f11 = state == MotorState.F1_1
-        depth[f11] = np.fmax(more, (slower + more) / pair)[f11]
-        f41 = state == MotorState.F4_1
-        depth[f41] = np.fmax(np.fmax(slower, less), (slower + less) / pair)[f41]
-        f31 = state == MotorState.F3_1
-        depth[f31] = np.fmax(np.fmin(faster, less), (faster + less) / pair)[f31]
-        unknown = state == MotorState.UNKNOWN
-        depth[unknown] = faster[unknown]
+        # (each state's depth copied in where the state is: the values of indexing, without gathering them)
+        np.copyto(depth, np.fmax(more, (slower + more) / pair), where=state == MotorState.F1_1)
+        np.copyto(
+            depth, np.fmax(np.fmax(slower, less), (slower + less) / pair), where=state == MotorState.F4_1
+        )
+        np.copyto(
+            depth, np.fmax(np.fmin(faster, less), (faster + less) / pair), where=state == MotorState.F3_1
+        )
+        np.copyto(depth, faster, where=state == MotorState.UNKNOWN)
     depth = np.where(np.isfinite(depth), np.maximum(depth, 1.0), 1.0)
     depth[speed_only] = 1.0
     return state, depth

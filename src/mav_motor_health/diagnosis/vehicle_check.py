@@ -51,6 +51,8 @@ __all__ = [
 
 #: Up to this many rows (the live agent's batches) the check runs as a plain loop.
 _SCALAR_MAX = 256
+#: no rows (a motor without turning rows)
+_NO_ROWS = np.zeros(0, dtype=np.intp)
 
 
 class VehicleFit:
@@ -135,8 +137,11 @@ class VehicleCheck:
         motor: ArrayLike,
         omega_rad_s: ArrayLike,
         omega_model_rad_s: ArrayLike,
+        motor_rows: Mapping[int, NDArray[np.intp]] | None = None,
     ) -> NDArray[np.int8]:
-        """The verdict at each row (:class:`VehicleFit` codes); rows in time order, any motors."""
+        """The verdict at each row (:class:`VehicleFit` codes); rows in time order, any motors.
+        ``motor_rows``: each motor's rows (increasing) where the caller knows them (then not searched
+        for; every motor of the rows must have its entry)."""
         t = np.asarray(time_s, dtype=float)
         if not self.applies:
             return np.zeros(t.size, dtype=np.int8)
@@ -147,7 +152,7 @@ class VehicleCheck:
             turning = np.isfinite(w) & np.isfinite(wm) & (wm > self.stop_speed_rad_s)
         if t.size <= _SCALAR_MAX:
             return self._update_rows(t, m, w, wm, turning)
-        return self._update_arrays(t, m, w, wm, turning)
+        return self._update_arrays(t, m, w, wm, turning, motor_rows)
 
     def _update_rows(self, t, m, w, wm, turning) -> NDArray[np.int8]:
         # Row by row, the verdict's three counts kept up to date as one motor's evidence changes
@@ -182,13 +187,19 @@ class VehicleCheck:
         departure = ev.departure()
         return (1, int(departure > self.rule.speed_departure), int(departure < -self.rule.speed_departure))
 
-    def _update_arrays(self, t, m, w, wm, turning) -> NDArray[np.int8]:
+    def _update_arrays(self, t, m, w, wm, turning, motor_rows=None) -> NDArray[np.int8]:
         n = t.size
-        turning_motors = m[turning]
-        if turning_motors.size and turning_motors.min() >= 0 and turning_motors.max() < 1 << 16:
-            seen_motors = np.flatnonzero(np.bincount(turning_motors)).tolist()  # counted, not sorted
+        turning_rows: dict[int, NDArray[np.intp]] = {}
+        if motor_rows is not None:  # each motor's turning rows from its rows
+            for motor, rows in motor_rows.items():
+                turning_rows[int(motor)] = rows[turning[rows]]
+            seen_motors = [motor for motor, rows in turning_rows.items() if rows.size]
         else:
-            seen_motors = np.unique(turning_motors).tolist()
+            turning_motors = m[turning]
+            if turning_motors.size and turning_motors.min() >= 0 and turning_motors.max() < 1 << 16:
+                seen_motors = np.flatnonzero(np.bincount(turning_motors)).tolist()  # counted, not sorted
+            else:
+                seen_motors = np.unique(turning_motors).tolist()
         motors = sorted(set(self.evidence) | {int(x) for x in seen_motors})
         # How many motors have evidence, depart faster, depart slower, at each row: each motor's share
         # changes only at its own turning rows, so the counts are sums of those changes
@@ -196,7 +207,11 @@ class VehicleCheck:
         before = np.zeros(3, dtype=np.int64)
         for motor in motors:
             ev = self.evidence.setdefault(motor, MotorEvidence())
-            seen = np.flatnonzero(turning & (m == motor))
+            seen = (
+                turning_rows.get(motor, _NO_ROWS)
+                if motor_rows is not None
+                else np.flatnonzero(turning & (m == motor))
+            )
             # The evidence after each of the motor's turning rows (index 0: the carry, before any): the
             # additions a row-by-row run makes, in its order
             count = ev.samples + np.arange(seen.size + 1)

@@ -171,15 +171,7 @@ class HeldValues:
             cols = np.asarray(signal, dtype=np.int64)
         last = _last_present(present)
         if last is None and signal is None:  # a row per target, a column per signal: column by column
-            held_value, held_age = np.empty((len(cols), len(t_target))), np.empty((len(cols), len(t_target)))
-            rows_1d, targets_1d = row[:, 0], t_target[:, 0]
-            for c in cols.tolist():
-                age_c = targets_1d - time_s[:, c].take(rows_1d)
-                paired_c = (age_c >= 0) & (age_c <= self.max_age_s)  # NaN (none held): False
-                np.copyto(held_value[c], np.nan)
-                np.copyto(held_value[c], value[:, c].take(rows_1d), where=paired_c)
-                np.copyto(held_age[c], np.nan)
-                np.copyto(held_age[c], age_c, where=paired_c)
+            held_value, held_age = self._hold_columns(time_s, value, row[:, 0], t_target[:, 0])
             end = len(t_source)
             self.time_s, self.value = time_s[end, self._signals], value[end, self._signals]
             return held_value.T, held_age.T
@@ -191,6 +183,34 @@ class HeldValues:
         end = last[-1] if last is not None else len(t_source)
         self.time_s, self.value = time_s[end, self._signals], value[end, self._signals]
         return np.where(paired, value[row, cols], np.nan), np.where(paired, age_s, np.nan)
+
+    def _hold_columns(
+        self,
+        time_s: NDArray[np.float64],
+        value: NDArray[np.float64],
+        rows: NDArray[np.intp],
+        targets: NDArray[np.float64],
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """:meth:`hold` where every entry is a value and every signal is wanted at every target: the held
+        values and ages, a row per signal. The signals share their source times (only the carried first
+        row differs), so each target's age is worked out once and only the targets that hold a carried
+        value (row 0) get their own signal's."""
+        signals = len(self._signals)
+        held_value, held_age = np.empty((signals, len(targets))), np.empty((signals, len(targets)))
+        age = targets - np.ascontiguousarray(time_s[:, 0]).take(rows)
+        paired = (age >= 0) & (age <= self.max_age_s)  # NaN (none held): False
+        carried = np.flatnonzero(rows == 0)  # targets before the part's first source time
+        for c in range(signals):
+            age_c, paired_c = age, paired
+            if c > 0 and carried.size:
+                age_c, paired_c = age.copy(), paired.copy()
+                age_c[carried] = targets[carried] - time_s[0, c]
+                paired_c[carried] = (age_c[carried] >= 0) & (age_c[carried] <= self.max_age_s)
+            np.copyto(held_value[c], np.nan)
+            np.copyto(held_value[c], np.ascontiguousarray(value[:, c]).take(rows), where=paired_c)
+            np.copyto(held_age[c], np.nan)
+            np.copyto(held_age[c], age_c, where=paired_c)
+        return held_value, held_age
 
     def _with_carried(
         self, t_source: NDArray[np.float64], v_source: NDArray[np.float64]
@@ -236,8 +256,8 @@ class MessageIntervals:
             return out
         # by signal, then time, ties in the order given (a log's table is so already)
         grouped = t.size < 2 or _grouped_in_time(sig, t)
-        order = np.arange(t.size) if grouped else np.lexsort((t, sig))
-        ts, ss = t[order], sig[order]
+        order = None if grouped else np.lexsort((t, sig))
+        ts, ss = (t, sig) if order is None else (t[order], sig[order])
         bounds = np.flatnonzero(np.diff(ss)) + 1
         means = np.empty(ts.shape)
         done: list[tuple[NDArray[np.float64], int, int]] = []  # signals worked out: times, where
@@ -262,6 +282,8 @@ class MessageIntervals:
                 )
             keep = max(int(np.searchsorted(times, times[-1] - self.window_s, side="left")) - 1, 0)
             self.recent[int(ss[a])] = times[keep:]
+        if order is None:  # already in the entries' order
+            return means
         out[order] = means
         return out
 
@@ -306,13 +328,55 @@ def held_together(
     groups: dict[int, list[str]] = {}
     for name, (times, _) in series.items():
         groups.setdefault(id(times), []).append(name)
+    # a value held at a time depends on that time alone: runs of the very same times (the motors one
+    # message stamps) are looked up once and copied
+    targets, runs = _distinct_runs(np.asarray(target_time_s, dtype=float))
     out = {}
     for names in groups.values():
         times = series[names[0]][0]
         values = np.column_stack([np.asarray(series[name][1], dtype=float) for name in names])
-        value, _ = HeldValues(len(names), max_age_s).hold(times, values, target_time_s)
+        value, _ = HeldValues(len(names), max_age_s).hold(times, values, targets)
         for k, name in enumerate(names):
-            out[name] = value[:, k]
+            out[name] = value[:, k] if runs is None else _copied_runs(value[:, k], runs)
+    return out
+
+
+#: :func:`_distinct_runs` looks for repeated runs among at most this many runs of increasing times
+_MAX_RUNS = 64
+
+
+def _distinct_runs(
+    time_s: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], list[tuple[int, int, int]] | None]:
+    """Times made of runs in increasing time (a table's motors, by motor then time) with each run that
+    repeats an earlier one left out, and where each run's values are in them (start, end, start there);
+    the times themselves and None where no run repeats (or there are too many runs to look)."""
+    breaks = np.flatnonzero(time_s[1:] < time_s[:-1]) + 1
+    if breaks.size == 0 or breaks.size > _MAX_RUNS:
+        return time_s, None
+    runs: list[tuple[int, int, int]] = []
+    kept: list[tuple[int, int, int]] = []  # the distinct runs: where in the times, where in the kept ones
+    size = 0
+    for a, b in zip([0, *breaks.tolist()], [*breaks.tolist(), time_s.size]):
+        same = next(
+            (at for ka, kb, at in kept if kb - ka == b - a and np.array_equal(time_s[ka:kb], time_s[a:b])),
+            None,
+        )
+        if same is None:
+            same = size
+            kept.append((a, b, size))
+            size += b - a
+        runs.append((a, b, same))
+    if len(kept) == len(runs):
+        return time_s, None
+    return np.concatenate([time_s[a:b] for a, b, _ in kept]), runs
+
+
+def _copied_runs(values: NDArray[np.float64], runs: list[tuple[int, int, int]]) -> NDArray[np.float64]:
+    """:func:`_distinct_runs`' values put back in every run."""
+    out = np.empty(runs[-1][1])
+    for a, b, at in runs:
+        out[a:b] = values[at : at + b - a]
     return out
 
 

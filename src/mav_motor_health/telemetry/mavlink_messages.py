@@ -359,15 +359,19 @@ class MessageReader:
         carried = self._last_count[slots]
         counts = np.concatenate((carried[:, None], count), axis=1)
         packets = np.concatenate(((carried >= 0)[:, None], seen), axis=1)
-        last = np.maximum.accumulate(np.where(packets, np.arange(n + 1), -1), axis=1)
-        previous = last[:, :-1]
-        has_previous = seen & (previous >= 0)
-        moved = has_previous & (count != counts[_SLOT_ROWS, previous])
-        moved_yet = np.logical_or.accumulate(
-            np.concatenate((self._count_moved[slots, None], moved), axis=1), axis=1
-        )
+        if packets.all():  # a packet in every message (and one before): each packet's previous is the last
+            has_previous = seen
+            moved = has_previous & (count != counts[:, :-1])
+            last_packet = np.full(len(carried), n)
+        else:
+            last = np.maximum.accumulate(np.where(packets, np.arange(n + 1), -1), axis=1)
+            previous = last[:, :-1]
+            has_previous = seen & (previous >= 0)
+            moved = has_previous & (count != counts[_SLOT_ROWS, previous])
+            last_packet = last[:, -1]
+        moved_yet = _since_first(np.concatenate((self._count_moved[slots, None], moved), axis=1))
         repeat = has_previous & ~moved & moved_yet[:, :-1]
-        carried[:] = counts[_SLOT_ROWS[:, 0], np.maximum(last[:, -1], 0)]  # none yet: column 0 is -1
+        carried[:] = counts[_SLOT_ROWS[:, 0], np.maximum(last_packet, 0)]  # none yet: column 0 is -1
         self._count_moved[slots] = moved_yet[:, -1]
         fresh = seen & ~repeat
         temperature = rec["temperature"].T
@@ -478,6 +482,14 @@ def _amps(centiamps: NDArray[Any]) -> NDArray[np.float64]:
     ca = np.asarray(centiamps, dtype=float).copy()
     ca[ca < 0] = np.nan
     return ca / 100.0
+
+
+def _since_first(flags: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """``np.logical_or.accumulate(flags, axis=1)``: each row true from its first true on (one search per
+    row instead of a running OR)."""
+    width = flags.shape[1]
+    first = np.where(flags.any(axis=1), flags.argmax(axis=1), width)
+    return np.arange(width)[None, :] >= first[:, None]
 
 
 def _esc_status(rec: Messages) -> tuple[NDArray[Any], ...]:

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._arrays import distinct
 from ..errors import DataError, LogFormatError
 from . import mavlink_esc
 from ._logscan import Damage, crc_x25_rows, follow_chain, gather_rows, zero_past
@@ -192,7 +193,7 @@ def read_messages(
         frames' bytes are kept in ``checked`` for their payloads."""
         ok = np.zeros(len(rows), dtype=bool)
         ids = msgid[rows]
-        for mid in np.unique(ids):
+        for mid in distinct(ids)[0].tolist():
             spec = by_id.get(int(mid))
             if spec is None:
                 continue
@@ -261,7 +262,8 @@ def read_messages(
     stamps = np.ascontiguousarray(head[chain, :8]).view(">u8").ravel()
     out.first_time_us = int(stamps[0])
     ids = msgid[chain]
-    uniq, counts = np.unique(ids, return_counts=True)
+    uniq, counts = distinct(ids)
+    present = set(uniq.tolist())
     for mid, n in zip(uniq.tolist(), counts.tolist()):
         spec = by_id.get(mid)
         out.counts[spec.name if spec else f"MSG{mid}"] = n
@@ -269,7 +271,8 @@ def read_messages(
         spec = by_name.get(name)
         if spec is None:
             continue
-        sel = np.flatnonzero(ids == spec.msgid)
+        # (a message the log does not have: no search through the records for it)
+        sel = np.flatnonzero(ids == spec.msgid) if spec.msgid in present else np.zeros(0, dtype=np.intp)
         rows = chain[sel]
         payload = payloads(spec, rows)
         out.messages[name] = payload.view(spec.dtype).ravel()
@@ -359,7 +362,7 @@ def read_tlog(path: str | Path) -> TelemetryTable:
         reading.bus_voltage_v,
         reading.esc_temp_c,
     )
-    motors_seen = sorted(set(reading.motor.tolist()))
+    motors_seen = distinct(reading.motor)[0].tolist()  # (sorted, as Python ints)
     motor_of_slot: dict[int, int | None] = {m - 1: m for m in motors_seen}
     commands = reading.commands()
     context: dict[str, Series] = {}
