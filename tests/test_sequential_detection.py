@@ -291,13 +291,13 @@ def test_the_floor_spares_a_runaway_motor() -> None:
 
 def test_the_floor_is_validated_and_written_back(tmp_path) -> None:
     shipped = load_profile("flight_vehicle")
-    assert shipped.detection.min_observations == 0.0  # off (docs/flight.md: what it costs)
+    assert shipped.detection.min_observations == 1.0  # one observation (docs/flight.md: measured)
     profile = dataclasses.replace(
-        shipped, detection=dataclasses.replace(shipped.detection, min_observations=1.0)
+        shipped, detection=dataclasses.replace(shipped.detection, min_observations=2.5)
     )
     path = tmp_path / "floored.toml"
     path.write_text(dump_profile(profile), encoding="utf-8")
-    assert "min_observations = 1.0" in path.read_text(encoding="utf-8")
+    assert "min_observations = 2.5" in path.read_text(encoding="utf-8")
     assert load_profile(path) == profile
     with pytest.raises(ConfigError, match="min_observations"):
         SequentialRule(false_alarms_per_100h=1.0, min_observations=-1.0)
