@@ -192,6 +192,28 @@ def test_the_report_credit_carries_across_calls() -> None:
     assert (whole != 0).any()
 
 
+def test_capped_evidence_reaching_h_exactly_is_an_alarm_however_the_samples_are_split() -> None:
+    """Three 10-Hz samples beyond the cap are one observation's worth, exactly h: an alarm in one call and
+    in any split into calls (the agent's batches), whatever the sums' rounding."""
+    rule = SequentialRule(false_alarms_per_100h=1.0, reference_sigmas=2.5, min_observations=1.0)
+    rng = np.random.default_rng(24)
+    n = 400
+    t = np.arange(n) * 0.1
+    z = 0.3 * rng.standard_normal((2, n))
+    for start in range(50, 350, 60):
+        z[:, start : start + 3] = -15.0
+    judged = np.ones(n, dtype=bool)
+    whole, _, _ = run_stream(rule, z, t, judged)
+    assert (np.flatnonzero(np.diff((whole == MotorState.F4_1).astype(int)) == 1).size) == 5
+    for seed in range(20):
+        cuts = np.sort(np.random.default_rng(seed).choice(np.arange(1, n), 40, replace=False))
+        carry, parts = SequentialCarry(), []
+        for lo, hi in zip([0, *cuts], [*cuts, n]):
+            got, _, carry = run_stream(rule, z[:, lo:hi], t[lo:hi], judged[lo:hi], carry)
+            parts.append(got)
+        np.testing.assert_array_equal(np.concatenate(parts), whole)
+
+
 def test_without_a_trusted_current_only_the_speed_directions_have_evidence() -> None:
     z = np.array([[-5.0, 5.0], [3.0, 3.0]])
     trusted = direction_evidence(z[0], z[1], np.array([True, True]), 4.5)

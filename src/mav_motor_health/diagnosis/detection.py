@@ -96,6 +96,10 @@ CAPPED_DIRECTIONS = (MotorState.F1_1, MotorState.F4_1, MotorState.SLOW)
 DIRECTIONS_AT_ONCE = 4
 #: motors the designed rate covers (an octocopter; fewer motors: fewer false alarms)
 DESIGN_MOTORS = 8
+#: S counts as at h within this share of it: capped evidence (``min_observations``) lands exactly on h
+#: after m observations, and the rounding of the sums, which depends on how the samples were split into
+#: calls (replay: one; the agent: many), must not decide whether that is an alarm
+_H_ROUNDING = 1e-9
 #: cells of the Markov chain that approximates the CUSUM (Brook and Evans)
 _CELLS = 240
 
@@ -365,5 +369,5 @@ def _latched(sums: NDArray[np.float64], h: float, start: NDArray[np.bool_]) -> N
     """Alarm at each sample: S reached h since it was last 0 (``start``: an alarm carried in)."""
     pos = np.arange(sums.shape[1])
     last_zero = np.maximum.accumulate(np.where(sums <= 0.0, pos, -1), axis=1)
-    last_cross = np.maximum.accumulate(np.where(sums >= h, pos, -1), axis=1)
+    last_cross = np.maximum.accumulate(np.where(sums >= h * (1.0 - _H_ROUNDING), pos, -1), axis=1)
     return (last_cross > last_zero) | (start[:, None] & (last_zero < 0))
