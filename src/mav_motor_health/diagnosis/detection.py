@@ -292,9 +292,11 @@ def sequential_alarms(
     ``evidence`` (directions × samples, :func:`direction_evidence`); ``observation_s`` the time of one
     independent observation at each sample (2τ); only ``judged`` samples add to the sums, and two judged
     samples more than ``max_gap_s`` apart start them afresh (the evidence before the gap is stale);
-    ``tau_s`` the deviations' shortest low-pass, which the threshold is designed for. The
-    sums are exact Lindley recursions, evaluated in closed form (S_n = W_n − min(−S_0, min_j W_j) over
-    each stretch without a gap), so any split of the samples into calls gives the same result."""
+    ``tau_s`` the deviations' shortest low-pass, which the threshold is designed for. Each judged sample
+    weighs the reports since the judged one before (:func:`report_credit`). The sums are exact Lindley
+    recursions, evaluated in closed form (S_n = W_n − min(−S_0, min_j W_j) over each stretch without a
+    gap), so any split of the samples into calls gives the same result (up to rounding, which the
+    comparison with h allows for: :data:`_H_ROUNDING`)."""
     h = rule.threshold(tau_s)
     k = rule.reference_sigmas
     t = np.asarray(time_s, dtype=float)
