@@ -159,12 +159,11 @@ def stuck_mask_rows(
         [[0.5 * (c.command_max + c.command_min) if np.isfinite(c.command_max) else 0.0] for c in carries]
     )
     finite = np.isfinite(command)
-    if finite.all():  # nothing to fill (a log's commands, mostly): each sample holds its own
-        c = np.clip(command, 0.0, 1.0)
-    else:
+    c = command  # nothing to fill (a log's commands, mostly): each sample holds its own
+    if not finite.all():
         idx = np.maximum.accumulate(np.where(finite, positions, -1), axis=1)
         c = np.where(idx >= 0, np.take_along_axis(command, np.maximum(idx, 0), axis=1), fill)
-        c = np.clip(c, 0.0, 1.0)
+    c = np.clip(c, 0.0, 1.0)
     change = ~(v == previous(v, [k.value for k in carries]))  # NaN never equals: a new segment
     seg = np.cumsum(change, axis=1)  # segment 0 continues the carried one
     since = np.where(change, t, np.nan)

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._arrays import distinct
 from ..errors import ConfigError
 from .states import MotorState
 
@@ -195,11 +196,7 @@ class VehicleCheck:
                 turning_rows[int(motor)] = rows[turning[rows]]
             seen_motors = [motor for motor, rows in turning_rows.items() if rows.size]
         else:
-            turning_motors = m[turning]
-            if turning_motors.size and turning_motors.min() >= 0 and turning_motors.max() < 1 << 16:
-                seen_motors = np.flatnonzero(np.bincount(turning_motors)).tolist()  # counted, not sorted
-            else:
-                seen_motors = np.unique(turning_motors).tolist()
+            seen_motors = distinct(m[turning])[0].tolist()
         motors = sorted(set(self.evidence) | {int(x) for x in seen_motors})
         # How many motors have evidence, depart faster, depart slower, at each row: each motor's share
         # changes only at its own turning rows, so the counts are sums of those changes

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._arrays import distinct
 from ..errors import DataError
 
 __all__ = ["REQUIRED_COLUMNS", "TelemetryTable"]
@@ -121,10 +122,7 @@ class TelemetryTable:
         )
 
     def motors(self) -> list[int]:
-        motor = self.columns["motor"]
-        if motor.size and motor.min() >= 0 and motor.max() < 1 << 16:  # motor numbers: counted, not sorted
-            return np.flatnonzero(np.bincount(motor)).tolist()
-        return [int(m) for m in np.unique(motor)]
+        return distinct(self.columns["motor"])[0].tolist()  # motor numbers: counted, not sorted
 
     def for_motor(self, motor: int) -> TelemetryTable:
         return self.select(self.columns["motor"] == motor)
