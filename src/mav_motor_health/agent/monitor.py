@@ -44,6 +44,17 @@ _CORE_COLUMNS = (
     "esc_current_a",
     "esc_temp_c",
 )
+#: The core's inputs (:class:`~..diagnosis.pipeline.MotorBatch`'s names) and the columns they are.
+_CORE_INPUTS = {
+    "time_s": "time_s",
+    "voltage_v": "voltage_v",
+    "omega_rad_s": "omega_rad_s",
+    "current_a": "current_a",
+    "bus_voltage_v": "bus_voltage_v",
+    "command": "throttle",
+    "sensor_current_a": "esc_current_a",
+    "pairing_s": "pairing_s",
+}
 #: Those a result row repeats from the sample (before the core's columns).
 _ROW_COLUMNS = (
     "time_s",
@@ -153,67 +164,98 @@ class HealthMonitor:
         else:
             mismatch = self.current_sum.update(cols["time_s"], motor, esc_current, cols["battery_current_a"])
             sum_flags = np.where(mismatch, int(SensorIssue.CURRENT_SUM), 0).astype(np.int16)
-        groups = {number: np.flatnonzero(motor == number) for number in motors}
-        batches: dict[int, MotorBatch] = {}
-        for number, index in groups.items():
-            arrays = {name: cols[name][index] for name in _CORE_COLUMNS}
-            arrays = calibrate_columns(arrays, self.esc, self.current)
-            batches[number] = MotorBatch(
-                arrays["time_s"],
-                arrays["voltage_v"],
-                arrays["omega_rad_s"],
-                arrays["current_a"],
-                arrays["bus_voltage_v"],
-                command=arrays["throttle"],
-                sensor_current_a=arrays["esc_current_a"],
-                extra_flags=sum_flags[index],
-                pairing_s=None if pairing is None else pairing[index],
-                context=arrays,  # what a model with fitted effects may read (temperatures, throttle...)
-            )
-        # every motor's samples in one core call (the same results as motor by motor)
-        results: dict[int, dict[str, NDArray]] = self.diagnoser.update_motors(batches)
+        # each sample's place in the core's rows: its motor's row (the motors in the order they first
+        # come) and its place among that motor's samples (they come in time order)
+        slot_of = {number: r for r, number in enumerate(motors)}
+        slot = np.array([slot_of[number] for number in motor.tolist()], dtype=np.intp)
+        counts = np.bincount(slot, minlength=len(motors))
+        by_motor = np.argsort(slot, kind="stable")
+        ends = np.cumsum(counts)
+        place = np.empty(motor.size, dtype=np.intp)
+        place[by_motor] = np.arange(motor.size) - np.repeat(ends - counts, counts)
+        groups = {number: by_motor[end - count : end] for number, count, end in zip(motors, counts, ends)}
+        calibrated = calibrate_columns({name: cols[name] for name in _CORE_COLUMNS}, self.esc, self.current)
+        if self.diagnoser.together(motors):
+            # every motor's samples laid out as the core's rows at once (one scatter per column), one core
+            # call, the results gathered back in the samples' order: the same as a batch per motor
+            # (update_motors), without building one
+            width = int(counts.max())
+
+            def laid_out(values: NDArray[Any] | None, pad: float = np.nan) -> NDArray[Any] | None:
+                if values is None:
+                    return None
+                out = np.full((len(motors), width), pad, dtype=values.dtype)
+                out[slot, place] = values
+                return out
+
+            inputs = {
+                name: laid_out(calibrated.get(given) if given != "pairing_s" else pairing)
+                for name, given in _CORE_INPUTS.items()
+            }
+            inputs["extra_flags"] = laid_out(sum_flags, 0)
+            laid = self.diagnoser.update_rows(motors, inputs, counts.tolist())
+            results = {name: values[slot, place] for name, values in laid.items()}
+        else:
+            batches: dict[int, MotorBatch] = {}
+            for number, index in groups.items():
+                arrays = {name: calibrated[name][index] for name in _CORE_COLUMNS}
+                batches[number] = MotorBatch(
+                    arrays["time_s"],
+                    arrays["voltage_v"],
+                    arrays["omega_rad_s"],
+                    arrays["current_a"],
+                    arrays["bus_voltage_v"],
+                    command=arrays["throttle"],
+                    sensor_current_a=arrays["esc_current_a"],
+                    extra_flags=sum_flags[index],
+                    pairing_s=None if pairing is None else pairing[index],
+                    context=arrays,  # what a model with fitted effects may read (temperatures, throttle...)
+                )
+            # every motor's samples in one core call where they share a model (the same results as motor
+            # by motor)
+            by_number = self.diagnoser.update_motors(batches)
+            results = {}
+            for name, first in by_number[motors[0]].items():
+                results[name] = np.empty(motor.size, dtype=first.dtype)
+                for number, index in groups.items():
+                    results[name][index] = by_number[number][name]
         # the vehicle check across motors, in the rows' order, as replay runs it over the whole log
-        omega_model = np.empty(motor.size)
-        announced = np.empty(motor.size, dtype=results[motors[0]]["announced"].dtype)
-        for number, index in groups.items():
-            omega_model[index] = results[number]["omega_model_rad_s"]
-            announced[index] = results[number]["announced"]
         verdict, announced = self.diagnoser.judge_vehicle(
-            cols["time_s"], motor, cols["omega_rad_s"], omega_model, announced
+            cols["time_s"], motor, cols["omega_rad_s"], results["omega_model_rad_s"], results["announced"]
         )
-        for number, index in groups.items():
-            result = results[number]
-            result["announced"][:] = announced[index]
-            fit = result.setdefault("vehicle_fit", np.zeros(index.size, dtype=np.int8))
-            fit[:] = verdict[index]
+        results["announced"] = announced.astype(results["announced"].dtype, copy=False)
+        results["vehicle_fit"] = verdict.astype(np.int8, copy=False)
         if verdict.size:
             self.vehicle_fit = int(verdict[-1])
+        # rows as Python values: the sample's columns, then the core's
+        sample = {name: cols[name].tolist() for name in _ROW_COLUMNS}
+        diagnosed = {name: values.tolist() for name, values in results.items()}
+
+        def row_at(i: int, number: int) -> dict[str, Any]:
+            return {
+                "time_s": sample["time_s"][i],
+                "motor": number,
+                **{name: sample[name][i] for name in _ROW_COLUMNS[1:]},
+                **{name: values[i] for name, values in diagnosed.items()},
+            }
+
         all_rows: list[dict[str, Any]] = []
         changes: list[StateChange] = []
+        states = diagnosed["announced"]
+        times = sample["time_s"]
         for number, index in groups.items():
             status = self.status[number]
-            sample = {name: cols[name][index].tolist() for name in _ROW_COLUMNS}  # Python values
-            diagnosed = {name: values.tolist() for name, values in results[number].items()}
-
-            def row_at(k: int, number: int = number, sample=sample, diagnosed=diagnosed) -> dict[str, Any]:
-                return {
-                    "time_s": sample["time_s"][k],
-                    "motor": number,
-                    **{name: sample[name][k] for name in _ROW_COLUMNS[1:]},
-                    **{name: values[k] for name, values in diagnosed.items()},
-                }
-
-            times = sample["time_s"]
-            made = [row_at(k) for k in range(len(times))] if rows else None
+            at = index.tolist()
+            made = [row_at(i, number) for i in at] if rows else None
             all_rows += made or []
-            for k, state in enumerate(diagnosed["announced"]):
-                if state != status.state:
-                    row = made[k] if made is not None else row_at(k)
-                    change = self._publish(status, MotorState(state), times[k], row)
+            for k, i in enumerate(at):
+                if states[i] != status.state:
+                    row = made[k] if made is not None else row_at(i, number)
+                    change = self._publish(status, MotorState(states[i]), times[i], row)
                     if change is not None:
                         changes.append(change)
-            status.row = made[-1] if made is not None else row_at(len(times) - 1)
-            status.last_sample_s = times[-1]
+            status.row = made[-1] if made is not None else row_at(at[-1], number)
+            status.last_sample_s = times[at[-1]]
             self.samples += index.size
         changes.sort(key=lambda c: c.time_s)
         return all_rows, changes

@@ -92,6 +92,18 @@ class MotorBatch:
     pairing_s: NDArray[np.float64] | None = None
 
 
+#: :class:`MotorBatch`'s float columns that :meth:`StreamingDiagnoser.update_rows` takes as rows
+_ROW_INPUTS = (
+    "time_s",
+    "voltage_v",
+    "omega_rad_s",
+    "current_a",
+    "bus_voltage_v",
+    "command",
+    "sensor_current_a",
+    "pairing_s",
+)
+
 #: a source's pairing of samples with commands [s]: one number for all samples, or one per sample
 Pairing = float | NDArray[np.float64] | None
 
@@ -671,33 +683,62 @@ class StreamingDiagnoser:
             out.ravel()[at] = np.concatenate([getattr(batch, name) for batch in batches])
             return out
 
-        time_s = rows("time_s")
+        columns = {name: rows(name) for name in _ROW_INPUTS}
+        columns["extra_flags"] = rows("extra_flags", np.int16, 0)
+        cols = self.update_rows(motors, columns, counts, pairing_s if batches[0].pairing_s is None else None)
+        return {
+            motor: {name: values[r, :count] for name, values in cols.items()}
+            for r, (motor, count) in enumerate(zip(motors, counts))
+        }
+
+    def together(self, motors: Sequence[int]) -> bool:
+        """Whether :meth:`update_motors` diagnoses these motors' batches (the same columns given) in one
+        core call, :meth:`update_rows`' (two or more motors of one model without fitted effects)."""
+        if len(motors) < 2:
+            return False
+        if not isinstance(self.params, dict):
+            return not self.params.effects
+        first = self.params[motors[0]]
+        return not first.effects and all(self.params[m] is first for m in motors)
+
+    def update_rows(
+        self,
+        motors: Sequence[int],
+        columns: Mapping[str, NDArray | None],
+        counts: Sequence[int],
+        pairing_s: float | None = None,
+    ) -> dict[str, NDArray]:
+        """The core call of :meth:`update_motors` for motors that go :meth:`together`, their samples given
+        as rows already: one row per motor (``columns``: :class:`MotorBatch`'s names, 2-D; after each
+        row's ``counts`` samples NaN, ``extra_flags`` 0, and the times, whatever they hold, are padded here
+        with the row's last, in place). Returns 2-D results (the padding's mean nothing). The live agent
+        lays its samples out so directly, without a batch per motor in between."""
+        time_s = columns["time_s"]
         assert time_s is not None
-        if min(counts) < width:  # padding: the row's last time (no interval), no values
+        if min(counts) < time_s.shape[1]:  # padding: the row's last time (no interval), no values
             for r, count in enumerate(counts):
                 time_s[r, count:] = time_s[r, count - 1] if count else 0.0
         motor_params = self.params[motors[0]] if isinstance(self.params, dict) else self.params
+        pairing = columns.get("pairing_s")
         cols, carries = diagnose_motors(
             motor_params,
             self.profile,
             time_s,
-            rows("voltage_v"),  # type: ignore[arg-type]
-            rows("omega_rad_s"),  # type: ignore[arg-type]
-            rows("current_a"),  # type: ignore[arg-type]
-            rows("bus_voltage_v"),
+            columns["voltage_v"],  # type: ignore[arg-type]
+            columns["omega_rad_s"],  # type: ignore[arg-type]
+            columns["current_a"],  # type: ignore[arg-type]
+            columns.get("bus_voltage_v"),
             [self.carries.get(m) for m in motors],
             counts,
-            command=rows("command"),
-            sensor_current_a=rows("sensor_current_a"),
-            extra_flags=rows("extra_flags", np.int16, 0),
-            pairing_s=rows("pairing_s") if batches[0].pairing_s is not None else pairing_s,
-            noise=self._noise_of(motors) if self.profile.noise_bands > 0 else None,
+            command=columns.get("command"),
+            sensor_current_a=columns.get("sensor_current_a"),
+            extra_flags=columns.get("extra_flags"),
+            pairing_s=pairing if pairing is not None else pairing_s,
+            noise=self._noise_of(list(motors)) if self.profile.noise_bands > 0 else None,
         )
-        results = {}
-        for r, (motor, count, carry) in enumerate(zip(motors, counts, carries)):
+        for motor, carry in zip(motors, carries):
             self.carries[motor] = carry
-            results[motor] = {name: values[r, :count] for name, values in cols.items()}
-        return results
+        return cols
 
     def announced(self, motor: int) -> MotorState:
         carry = self.carries.get(motor)

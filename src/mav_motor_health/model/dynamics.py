@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -58,17 +58,24 @@ def time_constant_s(params: MotorParams, omega_rad_s: ArrayLike) -> FloatArray:
     return params.J_kg_m2 / stiffness
 
 
-@dataclass(frozen=True)
-class ResponseCarry:
-    """Last time, input and output of the filter (NaN before the first sample)."""
+class ResponseCarry(NamedTuple):
+    """Last time, input and output of the filter (NaN before the first sample).
+
+    A named tuple, not a dataclass: the live agent's core call reads and builds about a hundred of these
+    (every low-pass of every motor), and a tuple is built without a Python ``__init__`` and read into an
+    array in one numpy call."""
 
     time_s: float = float("nan")
     input: float = float("nan")
     output: float = float("nan")
 
 
+#: the carry before the first sample
+_NO_SAMPLE = ResponseCarry()
+
+
 def first_order_response(
-    time_s: ArrayLike, target: ArrayLike, tau_s: ArrayLike, carry: ResponseCarry = ResponseCarry()
+    time_s: ArrayLike, target: ArrayLike, tau_s: ArrayLike, carry: ResponseCarry = _NO_SAMPLE
 ) -> tuple[FloatArray, ResponseCarry]:
     """The target passed through a first-order lag with time constant ``tau_s`` (per sample).
 
@@ -123,15 +130,17 @@ def first_order_responses(
     if groups * times != rows or tau.shape[0] not in (1, times, rows):
         raise ValueError(f"{rows} targets for {times} rows of times and {tau.shape[0]} of time constants")
     tau3 = tau.reshape(groups if tau.shape[0] == rows and rows > times else 1, -1, n)
-    carried = np.array([(c.time_s, c.input, c.output) for c in carries]).reshape(rows, 3)
+    carried = np.array(carries, dtype=float).reshape(rows, 3)
     carry_t = carried[:, 0].reshape(groups, times)
     carry_x, carry_y = carried[:, 1], carried[:, 2]
     # The decay of each interval, Δt/τ: the first from each row's carried time
     gaps = np.empty(t.shape)
     gaps[:, 0] = 0.0  # (replaced below by the carried time's)
     np.subtract(t[:, 1:], t[:, :-1], out=gaps[:, 1:])
-    np.clip(gaps, 0.0, None, out=gaps)
-    first_gap = np.clip(t[:, 0] - carry_t, 0.0, None)
+    # (np.maximum(·, 0), not np.clip: the same values, NaN and signed zeros included, without np.clip's
+    # layers of Python; the live agent's calls are a few samples, where those layers are the cost)
+    np.maximum(gaps, 0.0, out=gaps)
+    first_gap = np.maximum(t[:, 0] - carry_t, 0.0)
     if _lagging(tau3):
         decay_all = gaps / tau3
         first_decay = first_gap / tau3[:, :, 0]
@@ -172,6 +181,9 @@ def first_order_responses(
         b[~finite] = 0.0
     if restart is not None:
         b[restart] = x[restart]
+    if np.isfinite(carry_y).all():  # every row under way (the common case)
+        out = affine_recurrence(a, b, carry_y)
+        return out, _carries_at_last(t, x, out, carries, counts)
     y0 = carry_y.copy()
     first = np.zeros(rows, dtype=np.int64)
     for r in np.flatnonzero(~np.isfinite(carry_y)).tolist():
@@ -264,7 +276,7 @@ def _carries_at_last(
     rows, times = len(carries), t.shape[0]
     n = t.shape[1]
     if all(count == n for count in counts):  # every row full: its last column
-        last_times = np.tile(t[:, -1], rows // times).tolist()
+        last_times = t[:, -1].tolist() * (rows // times)
         inputs, outputs = x[:, -1].tolist(), out[:, -1].tolist()
     else:
         at = np.maximum(np.asarray(counts) - 1, 0)
@@ -273,7 +285,7 @@ def _carries_at_last(
         inputs = x[index, at].tolist()
         outputs = out[index, at].tolist()
     if all(map(math.isfinite, inputs)) and all(counts):  # (the common case: each row's own last values)
-        return list(map(ResponseCarry, last_times, inputs, outputs))
+        return list(map(ResponseCarry._make, zip(last_times, inputs, outputs)))
     return [
         carry if count == 0 else ResponseCarry(time, value if math.isfinite(value) else carry.input, output)
         for carry, count, time, value, output in zip(carries, counts, last_times, inputs, outputs)
@@ -320,8 +332,11 @@ def last_of(values: NDArray, lengths: Sequence[int] | NDArray[np.integer]) -> li
 
 #: columns of :func:`affine_recurrence`'s layout (samples stepped per numpy call: rows × this)
 _COLUMNS = 64
-#: up to this many values in all, the recurrence runs as a plain loop
+#: up to this many values in all, and this many series, the recurrence runs as a plain loop: a step of
+#: the loop over columns is three numpy calls for all series, a step of the plain loop a multiply-add
+#: in Python for one value (the same two roundings), about a tenth of that
 _LOOP_MAX = 256
+_LOOP_SERIES = 8
 
 
 def affine_recurrence(a: ArrayLike, b: ArrayLike, y0: ArrayLike) -> FloatArray:
@@ -342,12 +357,13 @@ def affine_recurrence(a: ArrayLike, b: ArrayLike, y0: ArrayLike) -> FloatArray:
     start = np.broadcast_to(np.asarray(y0, dtype=float), (series,))
     if n <= 2 * _COLUMNS:
         out = np.empty((series, n))
-        if series * n <= _LOOP_MAX and (series == 1 or n > _LOOP_MAX // 8):
+        if series * n <= _LOOP_MAX and series <= _LOOP_SERIES:
             for r, (ar, br, y) in enumerate(zip(a2.tolist(), b2.tolist(), start.tolist())):
-                row = out[r]
-                for k, (ak, bk) in enumerate(zip(ar, br)):
+                row = []
+                for ak, bk in zip(ar, br):
                     y = ak * y + bk
-                    row[k] = y
+                    row.append(y)
+                out[r] = row
         else:
             y_col = start.copy()
             for k in range(n):
