@@ -115,11 +115,15 @@ class Agent:
         self._pending_since: float | None = None
         self._vehicle_fit_told = self.monitor.vehicle_fit
         self._mqtt_refused_told = False
+        self._failed: asyncio.Future[None] | None = None  # a live link's handling failed (_received)
 
     # -- lifetime ------------------------------------------------------------------------------------
     async def __aenter__(self) -> Agent:
         loop = asyncio.get_running_loop()
         self._dialect = await loop.run_in_executor(None, health_dialect.load)
+        if not self.tlog:  # live messages handled as they are read (a .tlog: through the receive task)
+            self._failed = loop.create_future()
+            self.link.on_messages = self._received
         await self.link.__aenter__()
         try:
             if self.mqtt is not None:
@@ -178,6 +182,8 @@ class Agent:
 
     # -- receiving -----------------------------------------------------------------------------------
     async def _receive(self) -> None:
+        if self._failed is not None:  # a live link hands its messages to _received: fail as this task would
+            await self._failed
         while True:
             batch = await self.link.recv()
             if batch is None:
@@ -186,10 +192,23 @@ class Agent:
                     self._changed(change)
                 self.finished.set()
                 return
-            for item in batch:
-                self.handle(item)
-            if self._due(self._waiting_last) or self.assembler.waiting >= _READ_AT_LATEST:
-                self.read()
+            self._take(batch)
+
+    def _received(self, batch: list[Received]) -> None:
+        """A live link's messages, as they are read: handled at once, an error ending the receive task."""
+        assert self._failed is not None
+        if self._failed.done():
+            return
+        try:
+            self._take(batch)
+        except Exception as exc:  # raised again by the receive task, as if it had met it
+            self._failed.set_exception(exc)
+
+    def _take(self, batch: list[Received]) -> None:
+        for item in batch:
+            self.handle(item)
+        if self._due(self._waiting_last) or self.assembler.waiting >= _READ_AT_LATEST:
+            self.read()
 
     def handle(self, item: Received) -> None:
         """Everything one message does on arrival; its samples come with :meth:`read`."""

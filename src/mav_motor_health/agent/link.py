@@ -134,6 +134,11 @@ class MavlinkLink:
         self.opened = threading.Event()
         self._reader_task: asyncio.Task[None] | None = None
         self._parser: Any = None
+        #: where a live link's messages go as they are read, on the loop (None: to the inbox, for
+        #: :meth:`recv`). A consumer that handles them at once saves a queue, a future and a task step per
+        #: datagram (the agent, issue 18); nothing then waits, so nothing is dropped here either (a loop
+        #: that falls behind leaves them in the socket's buffer). A .tlog always goes through the inbox.
+        self.on_messages: Callable[[list[Received]], None] | None = None
 
     # -- context manager ---------------------------------------------------------------------------
     async def __aenter__(self) -> MavlinkLink:
@@ -207,6 +212,9 @@ class MavlinkLink:
         await self._inbox.put(batch)
 
     def _put_live(self, batch: list[Received] | None) -> None:
+        if batch is not None and self.on_messages is not None:
+            self.on_messages(batch)
+            return
         while batch and self._queued >= _QUEUE_LIMIT and not self._inbox.empty():
             old = self._inbox.get_nowait()  # the loop fell far behind: the oldest go first
             self._queued -= len(old or ())
