@@ -161,10 +161,13 @@ class VehicleCheck:
         evidenced, faster, slower = (sum(column) for column in zip((0, 0, 0), *status.values()))
         verdict = self._verdict(evidenced, faster, slower)
         out = np.empty(t.size, dtype=np.int8)
+        evidence = self.evidence
         rows = zip(turning.tolist(), m.tolist(), t.tolist(), w.tolist(), wm.tolist())
         for r, (turns, motor, time_s, speed, model) in enumerate(rows):
             if turns:
-                ev = self.evidence.setdefault(motor, MotorEvidence())
+                ev = evidence.get(motor)
+                if ev is None:  # (not setdefault: that would build a new one for every row)
+                    ev = evidence[motor] = MotorEvidence()
                 ev.samples += 1
                 ev.speed_sum += speed
                 ev.speed_model_sum += model
