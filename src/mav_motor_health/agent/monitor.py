@@ -227,34 +227,33 @@ class HealthMonitor:
         results["vehicle_fit"] = verdict.astype(np.int8, copy=False)
         if verdict.size:
             self.vehicle_fit = int(verdict[-1])
-        # rows as Python values: the sample's columns, then the core's
-        sample = {name: cols[name].tolist() for name in _ROW_COLUMNS}
-        diagnosed = {name: values.tolist() for name, values in results.items()}
+        # rows as Python values: the sample's columns, then the core's (a column's list each, a row's
+        # dict zipped from them)
+        names = ("time_s", "motor", *_ROW_COLUMNS[1:], *results)
+        values = [cols["time_s"].tolist(), motor.tolist()]
+        values += [cols[name].tolist() for name in _ROW_COLUMNS[1:]]
+        values += [column.tolist() for column in results.values()]
+        every = [dict(zip(names, row)) for row in zip(*values)] if rows else None
 
-        def row_at(i: int, number: int) -> dict[str, Any]:
-            return {
-                "time_s": sample["time_s"][i],
-                "motor": number,
-                **{name: sample[name][i] for name in _ROW_COLUMNS[1:]},
-                **{name: values[i] for name, values in diagnosed.items()},
-            }
+        def row_at(i: int) -> dict[str, Any]:
+            return dict(zip(names, [column[i] for column in values]))
 
         all_rows: list[dict[str, Any]] = []
         changes: list[StateChange] = []
-        states = diagnosed["announced"]
-        times = sample["time_s"]
+        states = values[names.index("announced")]
+        times = values[0]
         for number, index in groups.items():
             status = self.status[number]
             at = index.tolist()
-            made = [row_at(i, number) for i in at] if rows else None
+            made = [every[i] for i in at] if every is not None else None
             all_rows += made or []
             for k, i in enumerate(at):
                 if states[i] != status.state:
-                    row = made[k] if made is not None else row_at(i, number)
+                    row = made[k] if made is not None else row_at(i)
                     change = self._publish(status, MotorState(states[i]), times[i], row)
                     if change is not None:
                         changes.append(change)
-            status.row = made[-1] if made is not None else row_at(at[-1], number)
+            status.row = made[-1] if made is not None else row_at(at[-1])
             status.last_sample_s = times[at[-1]]
             self.samples += index.size
         changes.sort(key=lambda c: c.time_s)
