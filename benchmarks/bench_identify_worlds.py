@@ -22,7 +22,10 @@ the world's *true* idle offset and current side (:func:`~mav_motor_health.model.
 electrical_balance_at`: no search, no prior), next to what drives its error: the logged command's
 jitter (the spread of successive logged commands, /√2, of the command range), the pairing of ESC samples
 with commands (``pairing_s``) and the share of current readings at exactly 0 (an ESC reports no negative
-current).
+current). Beside it, the same balance on the simulator's own record of the flight, where each ESC report
+carries the duty of its own instant (``k_e paired``, ``R paired``): the same reports, readings and bins,
+no pairing. What the log's pairing adds is the difference; what is left is the readings' own doing (their
+noise, averaging and the missing negative current).
 
 The default worlds 1000-1019 are not the worlds 0-19 used while developing the identification: report
 figures from these.
@@ -46,11 +49,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from mav_motor_health.evaluation.worlds import write_identification_log  # noqa: E402
 from mav_motor_health.identification import identify_logs  # noqa: E402
 from mav_motor_health.model.identify import electrical_balance_at  # noqa: E402
+from mav_motor_health.sim.engine import SimRecord, run_scenario  # noqa: E402
+from mav_motor_health.sim.scenario import world_scenario  # noqa: E402
 from mav_motor_health.sim.worlds import World, draw_world  # noqa: E402
+from mav_motor_health.sim.writers import write_record  # noqa: E402
 from mav_motor_health.telemetry import sources  # noqa: E402
+from mav_motor_health.telemetry.table import TelemetryTable  # noqa: E402
 
 BOUNDS = {"k_e": 0.03, "R_ohm": 0.15, "J_kg_m2": 0.30, "idle_offset": 0.01}
 
@@ -98,10 +104,11 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
 
     with tempfile.TemporaryDirectory(prefix="mmh-world-") as tmp:
         path = Path(tmp) / f"world{seed}.{fmt}"
-        write_identification_log(seed, path, duration_s)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            at_truth.update(balance_at_truth(path, world))
+            record = run_scenario(world_scenario(seed, duration_s=duration_s))  # as `simulate world` flies it
+            write_record(record, path)
+            at_truth.update(balance_at_truth(path, world, record))
             try:
                 found = identify_logs([path]).found
             except Exception as exc:  # a benchmark reports every world, a failure too
@@ -122,9 +129,10 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
     return result(side, errors, dict(found.determined_by))
 
 
-def balance_at_truth(path: Path, world: World) -> dict[str, float]:
-    """The electrical balance at the world's true idle offset and side, and the log's command jitter,
-    pairing and share of zero current readings (module doc)."""
+def balance_at_truth(path: Path, world: World, record: SimRecord) -> dict[str, float]:
+    """The electrical balance at the world's true idle offset and side, from the log and from the
+    simulator's record with each report's own duty, and the log's command jitter, pairing and share of
+    zero current readings (module doc)."""
     table = sources.read(path)
     jitter = []
     for motor in table.motors():
@@ -140,13 +148,21 @@ def balance_at_truth(path: Path, world: World) -> dict[str, float]:
         "pairing_s": float(table.meta.get("pairing_s") or math.nan),
         "zero": float(np.mean(reading[np.isfinite(reading)] == 0.0)),
     }
-    if world.current.side != "unusable":
-        fits = electrical_balance_at(table, world.esc.idle_offset, world.current.side)
+    if world.current.side == "unusable":
+        return out
+    columns = record.esc_columns()
+    columns["throttle"] = np.array([s.duty for s in record.esc], dtype=float)  # each report's own duty
+    # the log's bins (they span at least four of its pairing intervals)
+    paired = TelemetryTable(columns, source="the record", meta={"pairing_s": table.meta.get("pairing_s")})
+    for suffix, fits in (
+        ("", electrical_balance_at(table, world.esc.idle_offset, world.current.side)),
+        ("_paired", electrical_balance_at(paired, 0.0, world.current.side)),  # the duty itself: no map
+    ):
         if fits:
             truth = world.motor
-            out["k_e"] = statistics.median(v[0] for v in fits.values()) / truth.k_e - 1.0
+            out["k_e" + suffix] = statistics.median(v[0] for v in fits.values()) / truth.k_e - 1.0
             r_ohm = statistics.median(v[1] for v in fits.values()) * world.current.gain
-            out["R_ohm"] = r_ohm / truth.R_ohm - 1.0
+            out["R_ohm" + suffix] = r_ohm / truth.R_ohm - 1.0
     return out
 
 
@@ -210,7 +226,10 @@ def main(argv: list[str] | None = None) -> int:
         "\nthe electrical balance at the true idle offset and current side (no search, no prior), and what"
         "\nthe log does to it: command jitter (of the command range), pairing, current readings at 0\n"
     )
-    print(f"{'world':>6}{'side':>9}{'k_e':>9}{'R_ohm':>9}{'jitter':>9}{'pairing':>10}{'zero':>8}")
+    print(
+        f"{'world':>6}{'side':>9}{'k_e':>9}{'R_ohm':>9}{'k_e paired':>12}{'R paired':>10}"
+        f"{'jitter':>9}{'pairing':>10}{'zero':>8}"
+    )
     for r in results:
         a = r.at_truth
         if not a:
@@ -219,16 +238,21 @@ def main(argv: list[str] | None = None) -> int:
             f"{100 * a[k]:>+8.1f}%" if k in a and math.isfinite(a[k]) else f"{'-':>9}"
             for k in ("k_e", "R_ohm")
         )
+        cells += "".join(
+            f"{100 * a[k]:>+{w - 1}.1f}%" if k in a and math.isfinite(a[k]) else f"{'-':>{w}}"
+            for k, w in (("k_e_paired", 12), ("R_ohm_paired", 10))
+        )
         print(
             f"{r.seed:>6}{r.side_true:>9}{cells}{a['jitter']:>9.3f}{1000 * a['pairing_s']:>8.0f}ms"
             f"{100 * a['zero']:>7.1f}%"
         )
-    kes = [abs(r.at_truth["k_e"]) for r in results if math.isfinite(r.at_truth.get("k_e", math.nan))]
-    if kes:
-        print(
-            f"k_e at the true ESC map: median |err| {100 * statistics.median(kes):.3g} %, worst "
-            f"{100 * max(kes):.3g} %, within 3 %: {sum(v <= BOUNDS['k_e'] for v in kes)}/{len(kes)}"
-        )
+    for key, what in (("k_e", "from the log"), ("k_e_paired", "each report with its own duty")):
+        kes = [abs(r.at_truth[key]) for r in results if math.isfinite(r.at_truth.get(key, math.nan))]
+        if kes:
+            print(
+                f"k_e at the true ESC map, {what}: median |err| {100 * statistics.median(kes):.3g} %, worst "
+                f"{100 * max(kes):.3g} %, within 3 %: {sum(v <= BOUNDS['k_e'] for v in kes)}/{len(kes)}"
+            )
     print(f"time per world: median {statistics.median(r.seconds for r in results):.1f} s")
     return 0
 

@@ -207,6 +207,7 @@ class BalanceRule(CompareRule):
         frame.steady = steady
         frame.since_step_s = since_step
         frame.judged_voltage_v = bal.voltage_v
+        frame.omega_mean_rad_s, frame.current_mean_a = bal.omega_mean_rad_s, bal.current_mean_a
         frame.activity_v = bal.activity_v
         frame.omega_expected_rad_s = omega_pred
         # No fault turns the motor faster than V/k_e (tree rule 2), but the balance rule judges the model

@@ -95,6 +95,10 @@ class Frame:
     after_step_factor: NDArray[np.float64] | None = None
     #: the input voltage the bands and the tree are read at
     judged_voltage_v: NDArray[np.float64] = None  # type: ignore[assignment]
+    #: the measured speed [rad/s] and current [A] low-passed as the balances are, no model in them
+    #: (balance rule; None: the rule has none)
+    omega_mean_rad_s: NDArray[np.float64] | None = None
+    current_mean_a: NDArray[np.float64] | None = None
     #: the speed the motor is expected to turn at (tree rule 1)
     omega_expected_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
     #: the highest stop speed of each sample [rad/s] (tree rule 1, "The lowest input": a share of the free

@@ -8,7 +8,17 @@ flight draws at least the current the model needs at that speed, where the model
 turning faster than that and drawing less than that current by more than its band below has lost
 propeller load (F3.1: a broken or thrown blade, which the autopilot answers with full command, beyond any
 speed a healthy flight shows); it is judged however far beyond the range it turns
-(:func:`_unloaded_beyond`)."""
+(:func:`_unloaded_beyond`).
+
+Under the balance rule the check reads what the motor does, not the model: its measured speed and current
+low-passed as the balances are, against the floor with the motor's band in quiet input. The deviation's
+band widens with the input's activity because the model's steady state, read at a jittering paired
+command, is far off in busy air (its current by tens of amperes on a heavy vehicle); the floor is the
+load's and needs none of it. What a healthy motor can do below the floor is coast down after its input
+falls, so the check takes a motor driven: its input not below its low-pass. And it judges such a motor
+also while the rule waits after an input step: the autopilot's answer to the lost thrust *is* a step up to
+full command, and waiting it out delayed the alarm by the whole wait; a healthy motor driven up lags below
+its speed and draws more than its load, never less."""
 
 from __future__ import annotations
 
@@ -63,9 +73,13 @@ class Judged(Rule):
                     for r, n in enumerate(noise)
                 ]
             )
-            if not known.all():  # (the lost-load check only where some sample lies beyond)
-                known = known | _unloaded_beyond(frame)
+            unloaded = _unloaded_beyond(frame) if not known.all() else None  # (only where some lie beyond)
+            if unloaded is not None:
+                known = known | unloaded
             steady = steady & (known | one_of(state, TRANSIENT_OK))
+            if unloaded is not None:
+                # nor does a healthy motor driven up show it while the rule waits after a step
+                steady = steady | (unloaded & _waiting(frame))
         eligible = (steady | one_of(state, TRANSIENT_OK)) & (state != MotorState.NO_DATA)
         if frame.command is not None and profile.min_command > 0:
             idle = np.asarray(frame.command, dtype=float) < profile.min_command  # idle and spin-up
@@ -76,22 +90,43 @@ class Judged(Rule):
         return carries
 
 
+def _waiting(frame: Frame) -> NDArray[np.bool_]:
+    """Samples the balance rule holds back after an input step, their stream running."""
+    since = frame.since_step_s
+    if since is None:
+        return np.zeros(frame.shape, dtype=bool)
+    return np.isfinite(since) & ~frame.steady
+
+
 def _unloaded_beyond(frame: Frame) -> NDArray[np.bool_]:
     """Samples the tree reads as F3.1 whose motor turns faster than the top of its identified speed range
     (widened by ``range_margin``) while drawing less than the model's current at that top, by more than
-    the band below: a propeller that lost load, whatever the model says beyond the range (module doc)."""
+    the quiet band below, driven (its input not below its low-pass): a propeller that lost load, whatever
+    the model says beyond the range (module doc). Where the rule low-passes the measurements (the balance
+    rule), the speed and current are those, with no model in them, and the band is the motor's noise in
+    quiet input: the bound is the load's, which holds in any air."""
     assert frame.noise is not None
-    margin = frame.profile.range_margin
+    profile = frame.profile
+    margin = profile.range_margin
     top = np.array([n.omega_high_rad_s for n in frame.noise], dtype=float)
     top = np.where(np.isfinite(top), (1.0 + margin) * top, np.inf)[:, None]
     # the current a healthy motor needs at the top of its range (a lower bound beyond it), with each
     # motor's own offset from the shared model, as its model is judged (rules/offsets.py)
     offset = np.array([n.current_offset_a for n in frame.noise], dtype=float)[:, None]
     floor = current_from_speed(frame.params, np.where(np.isfinite(top), top, 0.0)) + offset
+    omega, current, band = frame.omega_judged_rad_s, frame.current_judged_a, frame.current_band_below_a
+    driven: NDArray[np.bool_] | bool = True
+    if frame.omega_mean_rad_s is not None and frame.current_mean_a is not None and profile.noise_bands > 0:
+        omega, current = frame.omega_mean_rad_s, frame.current_mean_a
+        quiet = np.array([n.sigmas(0.0)[1] for n in frame.noise], dtype=float).reshape(-1, 1)
+        band = profile.noise_bands * quiet
+        with np.errstate(invalid="ignore"):
+            driven = frame.voltage_v >= frame.judged_voltage_v
     with np.errstate(invalid="ignore"):
         return (
             (frame.state == MotorState.F3_1)
-            & (frame.omega_judged_rad_s > top)
+            & (omega > top)
             & frame.current_trusted()
-            & (frame.current_judged_a + frame.current_band_below_a < floor)
+            & (current + band < floor)
+            & driven
         )
