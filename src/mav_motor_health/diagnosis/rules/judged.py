@@ -73,13 +73,12 @@ class Judged(Rule):
                     for r, n in enumerate(noise)
                 ]
             )
-            unloaded = _unloaded_beyond(frame) if not known.all() else None  # (only where some lie beyond)
-            if unloaded is not None:
-                known = known | unloaded
+            held = steady  # the rule's own verdict, before the range
             steady = steady & (known | one_of(state, TRANSIENT_OK))
-            if unloaded is not None:
-                # nor does a healthy motor driven up show it while the rule waits after a step
-                steady = steady | (unloaded & _waiting(frame))
+            if not known.all():  # (the lost-load check only where some sample lies beyond)
+                # judged beyond the range, and also while the rule waits after a step: a healthy motor
+                # driven up never shows it
+                steady = steady | (_unloaded_beyond(frame) & (held | _waiting(frame)))
         eligible = (steady | one_of(state, TRANSIENT_OK)) & (state != MotorState.NO_DATA)
         if frame.command is not None and profile.min_command > 0:
             idle = np.asarray(frame.command, dtype=float) < profile.min_command  # idle and spin-up
