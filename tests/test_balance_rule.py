@@ -13,8 +13,14 @@ from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.diagnosis.steady import warm_mask
 from mav_motor_health.diagnosis.tuning import _activity_band
 from mav_motor_health.evaluation.campaign import FlightCase, run_flights
-from mav_motor_health.model.balance import balance_deviations, censored_mean, input_activity
+from mav_motor_health.model.balance import (
+    balance_deviations,
+    censored_mean,
+    input_activity,
+    linearised_slopes,
+)
 from mav_motor_health.model.equations import steady_state
+from mav_motor_health.replay import events_from_diagnosis
 from mav_motor_health.sim.faults import FaultEffects
 from mav_motor_health.sim.motor import MotorBank, MotorDynamics
 from mav_motor_health.telemetry.table import TelemetryTable
@@ -134,6 +140,37 @@ def test_faults_show_their_signature_as_deviations(motor, flights) -> None:
     assert dev["F1.1"][0] < -20 and dev["F1.1"][1] > 1.0
     assert dev["F3.1"][0] > 50 and dev["F3.1"][1] < -1.0
     assert dev["F4.1"][0] < -50 and dev["F4.1"][1] < -0.5
+
+
+def test_each_fault_departs_in_its_own_equation(motor, flights) -> None:
+    """The result carries the two balances apart: friction and a lighter propeller are torque the model
+    lacks (or has too much of) with the voltage accounted for, an open transistor is voltage lost with the
+    torque accounted for; and the current deviation is their sum in amperes, (k_e·r_T − G·r_V)/D."""
+    profile = load_profile("flight")
+    torque, voltage, announced = {}, {}, {}
+    for name, flight in flights.items():
+        r = diagnose(flight.table, motor, profile)
+        sel = _motor2_after(r, 14.0)
+        torque[name] = np.median(r["torque_residual_nm"][sel])
+        voltage[name] = np.median(r["voltage_residual_v"][sel])
+        # the event that names the fault says which equation it departs in
+        announced[name] = [e["evidence"] for e in events_from_diagnosis(r) if e["state"] == name]
+        if name == "healthy":
+            g, d = linearised_slopes(motor, r["omega_model_rad_s"][sel])
+            parts = (motor.k_e * r["torque_residual_nm"][sel] - g * r["voltage_residual_v"][sel]) / d
+            di = (r["current_judged_a"] - r["current_model_a"])[sel]
+            # the same deviation up to how the two means weigh a jittering input (within 0.05 A here)
+            assert np.median(np.abs(parts - di)) < 0.05
+    # a healthy motor: both near zero (the paper motor's k_t is 0.00975 N·m/A: 0.1 A is 0.001 N·m)
+    assert abs(torque["healthy"]) < 1e-3 and abs(voltage["healthy"]) < 0.05
+    # friction: torque the model lacks; a lighter propeller: torque it has too much of; voltage as healthy
+    assert torque["F1.1"] > 10 * 1e-3 and abs(voltage["F1.1"]) < 0.05
+    assert torque["F3.1"] < -10 * 1e-3 and abs(voltage["F3.1"]) < 0.05
+    # an open transistor: voltage lost (r_V = V − R·i − k_e·ω > 0), torque as healthy
+    assert voltage["F4.1"] > 0.2 and abs(torque["F4.1"]) < 2e-3
+    assert announced["F1.1"] and announced["F1.1"][0]["torque_residual_nm"] > 5e-3
+    assert announced["F3.1"] and announced["F3.1"][0]["torque_residual_nm"] < -5e-3
+    assert announced["F4.1"] and announced["F4.1"][0]["voltage_residual_v"] > 0.1
 
 
 def test_flight_profile_names_each_fault_and_stays_quiet_when_healthy(motor, flights) -> None:

@@ -56,6 +56,8 @@ __all__ = [
 #: Columns copied into diagnosis.csv besides the diagnosis itself when the log has them: the two the
 #: motor voltage comes from (voltage_v = throttle × bus_voltage_v).
 CONTEXT_COLUMNS = ("throttle", "bus_voltage_v")
+#: The balance rule's two equations apart, low-passed (model/balance.py): in each event's evidence.
+RESIDUAL_COLUMNS = ("torque_residual_nm", "voltage_residual_v")
 #: A motor whose samples lack speed or current this often is reported as NO_DATA.
 NO_DATA_SHARE = 0.5
 #: A motor whose telemetry ends this long before the others' is reported as NO_DATA (telemetry lost).
@@ -204,6 +206,8 @@ def events_from_diagnosis(result: TelemetryTable) -> list[dict[str, Any]]:
                     "voltage_v": _num(result["voltage_v"][i]),
                     "raw_state": MotorState(int(result["state"][i])).label,
                     "steady": bool(result["steady"][i]),
+                    # which equation the motor departs in (model/balance.py); None where not computed
+                    **{name: _num(result[name][i]) for name in RESIDUAL_COLUMNS if name in result},
                 },
             }
         )

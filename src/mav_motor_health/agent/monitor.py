@@ -281,7 +281,15 @@ class HealthMonitor:
             previous=status.state,
             evidence={
                 k: float(row[k])
-                for k in ("omega_rad_s", "omega_model_rad_s", "current_a", "current_model_a", "voltage_v")
+                for k in (
+                    "omega_rad_s",
+                    "omega_model_rad_s",
+                    "current_a",
+                    "current_model_a",
+                    "voltage_v",
+                    "torque_residual_nm",
+                    "voltage_residual_v",
+                )
                 if k in row
             },
         )

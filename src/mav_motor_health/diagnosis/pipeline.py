@@ -258,6 +258,8 @@ def _result_columns(frame: Frame) -> dict[str, NDArray]:
         "pairing_error_rad_s": nan_unless(frame.pairing_error_rad_s),
         "detection_level": nan_unless(frame.detection_level),
         "since_step_s": nan_unless(frame.since_step_s),
+        "torque_residual_nm": nan_unless(frame.torque_residual_nm),
+        "voltage_residual_v": nan_unless(frame.voltage_residual_v),
     }
 
 
@@ -282,6 +284,8 @@ _RESULT_COLUMNS = (
     "pairing_error_rad_s",
     "detection_level",
     "since_step_s",
+    "torque_residual_nm",
+    "voltage_residual_v",
 )
 
 
@@ -369,6 +373,8 @@ def diagnose(
         "pairing_error_rad_s": np.full(n, np.nan),
         "detection_level": np.full(n, np.nan),
         "since_step_s": np.full(n, np.nan),
+        "torque_residual_nm": np.full(n, np.nan),
+        "voltage_residual_v": np.full(n, np.nan),
     }
     motors = ordered["motor"]
     # each sample's pairing with its command (a log's column, telemetry/assemble.py); a table without
@@ -474,6 +480,8 @@ def diagnose(
         pairing_error_rad_s=out["pairing_error_rad_s"],
         detection_level=out["detection_level"],
         since_step_s=out["since_step_s"],
+        torque_residual_nm=out["torque_residual_nm"],
+        voltage_residual_v=out["voltage_residual_v"],
         vehicle_fit=vehicle_fit,
     )
     for name in ordered.names:

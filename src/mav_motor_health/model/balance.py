@@ -26,6 +26,18 @@ mis-scaled does not move the speed residual.) The tree then judges ``ω_model(V�
 ``i_model(V̄) + Δi`` against ``ω_model(V̄)`` and ``i_model(V̄)``: on a testbed at constant input this is
 the paper's comparison; in flight it is the same comparison without needing the input to stand still.
 
+The two equations apart. Δω and Δi each mix both balances; the result also carries the two apart,
+low-passed as they are: ``torque_residual_nm``, the mean of ``k_t·(i − i_load(ω))`` less the inertia term
+(the mechanical balance ``r_T`` with the measured current, no input in it), and ``voltage_residual_v``,
+the ``r_V`` that Δi uses. Which of the two a motor departs in says which effect the model misses: extra
+friction (F1.1) or a lighter propeller (F3.1) is torque (``r_T`` above or below 0) with ``r_V`` near 0,
+an open transistor (F4.1) is voltage (``r_V`` above 0) with ``r_T`` near 0. Their noise differs: ``r_V``
+carries the error of the command each report was paired with (a command that jitters between reports
+moves ``V``); ``r_T`` needs no command where the ESC reports its motor current (where it reports its input
+current, the motor current is that over the duty, and the command's jitter enters there too). Δi combines
+them, ``(k_e·r_T − G·r_V)/D``, so its band holds both noises while a fault moves one
+(docs/flight.md, "The two equations apart, measured").
+
 The current enters through ``r_V`` only, weighted as the sensor weights it. An ESC reports its *input*
 current ``s``, the average of ``d·i`` (duty times motor current) as a shunt on its DC side sees it; where
 the command zigzags between control steps, duty and current rise and fall together, and ``s/d`` of a
@@ -108,6 +120,7 @@ class BalanceCarry:
     current: ResponseCarry = field(default_factory=ResponseCarry)
     speed_balance: ResponseCarry = field(default_factory=ResponseCarry)
     electrical: ResponseCarry = field(default_factory=ResponseCarry)
+    mechanical: ResponseCarry = field(default_factory=ResponseCarry)
     zero_current: ResponseCarry = field(default_factory=ResponseCarry)
     sensed: ResponseCarry = field(default_factory=ResponseCarry)
     weight: ResponseCarry = field(default_factory=ResponseCarry)
@@ -127,6 +140,8 @@ class BalanceResult:
     activity_v: FloatArray  # the input activity, scaled by √(sample interval / INTERVAL_REF_S)
     zigzag_v: FloatArray  # the input activity as measured (how far the input jumps between samples)
     tau_s: FloatArray  # the low-pass time constant at each sample
+    torque_residual_nm: FloatArray  # low-passed r_T, the torque the model cannot account for
+    voltage_residual_v: FloatArray  # low-passed r_V, the voltage the model cannot account for
 
 
 def input_activity(
@@ -290,7 +305,7 @@ def balance_deviations(
 
     if t.size == 0:
         empty = np.zeros(0)
-        return BalanceResult(*([empty] * 10)), carry or BalanceCarry()
+        return BalanceResult(*([empty] * len(_RESULT_FIELDS))), carry or BalanceCarry()
     result, (new,) = balance_deviations_rows(
         params,
         t.reshape(1, -1),
@@ -319,10 +334,22 @@ _RESULT_FIELDS = (
     "activity_v",
     "zigzag_v",
     "tau_s",
+    "torque_residual_nm",
+    "voltage_residual_v",
 )
 
 #: the balance rule's low-passed quantities, in the order of :func:`balance_deviations_rows`' one call
-_AVERAGED = ("voltage", "omega", "current", "sensed", "weight", "zero_current", "speed_balance", "electrical")
+_AVERAGED = (
+    "voltage",
+    "omega",
+    "current",
+    "sensed",
+    "weight",
+    "zero_current",
+    "speed_balance",
+    "electrical",
+    "mechanical",
+)
 
 
 def balance_deviations_rows(
@@ -343,7 +370,7 @@ def balance_deviations_rows(
 ) -> tuple[BalanceResult, list[BalanceCarry]]:
     """:func:`balance_deviations` of several motors of one model at once: rows of samples (2-D), one
     carry per row; ``lengths`` each row's number of samples (None: all; the rest is padding after them).
-    The eight low-passes of each row run in one call."""
+    The nine low-passes of each row run in one call."""
     t, v, w, i = time_s, voltage_v, omega_rad_s, current_a
     rows, n = t.shape
     counts = [n] * rows if lengths is None else lengths
@@ -389,16 +416,17 @@ def balance_deviations_rows(
     weight = np.where(np.isfinite(sensed), weight, np.nan)
     zero = np.where(np.isfinite(sensed), (sensed == 0.0).astype(float), np.nan)
     electrical = weight * (v - p.k_e * w) - p.R_ohm * sensed
+    mechanical = p.k_t * (i - load_a)  # the torque the model cannot account for, less J·dω/dt
     # every low-pass of every row at once (the stall current: every current reading)
     k = len(_AVERAGED)
     means, averaged = first_order_responses(
-        t,  # each motor's times and time constants, shared by its eight quantities
-        np.concatenate([v, w, i, sensed, weight, zero, speed_balance, electrical]),
+        t,  # each motor's times and time constants, shared by its nine quantities
+        np.concatenate([v, w, i, sensed, weight, zero, speed_balance, electrical, mechanical]),
         tau,
         [getattr(c, name) for name in _AVERAGED for c in carries],
         counts * k,
     )
-    v_mean, w_mean, i_mean, s_mean, d_mean, zero_share, sb_mean, e_mean = means.reshape(k, rows, n)
+    v_mean, w_mean, i_mean, s_mean, d_mean, zero_share, sb_mean, e_mean, m_mean = means.reshape(k, rows, n)
     inertia = p.J_kg_m2 or 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
         accel_torque = inertia * (w - w_mean) / tau
@@ -414,6 +442,9 @@ def balance_deviations_rows(
     # the current at the deviated speed, from eq. 1: Δi = −(k_e·Δω + r_V)/R (= (k_e·r_T − G·r_V)/D)
     delta_i = -(p.k_e * delta_w + rv_mean) / p.R_ohm
     delta_i = np.where(np.isfinite(i), delta_i, np.nan)
+    # the two equations apart (module doc, "The two equations apart")
+    torque = np.where(np.isfinite(i), m_mean - accel_torque, np.nan)
+    rv_mean = np.where(np.isfinite(i), rv_mean, np.nan)
     result = BalanceResult(
         voltage_v=v_mean,
         omega_model_rad_s=model.omega_rad_s,
@@ -425,6 +456,8 @@ def balance_deviations_rows(
         activity_v=activity,
         zigzag_v=zigzag,
         tau_s=np.broadcast_to(np.asarray(tau, dtype=float), t.shape),
+        torque_residual_nm=torque,
+        voltage_residual_v=rv_mean,
     )
     news = [
         BalanceCarry(

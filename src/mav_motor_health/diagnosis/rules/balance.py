@@ -208,6 +208,7 @@ class BalanceRule(CompareRule):
         frame.since_step_s = since_step
         frame.judged_voltage_v = bal.voltage_v
         frame.omega_mean_rad_s, frame.current_mean_a = bal.omega_mean_rad_s, bal.current_mean_a
+        frame.torque_residual_nm, frame.voltage_residual_v = bal.torque_residual_nm, bal.voltage_residual_v
         frame.activity_v = bal.activity_v
         frame.omega_expected_rad_s = omega_pred
         # No fault turns the motor faster than V/k_e (tree rule 2), but the balance rule judges the model

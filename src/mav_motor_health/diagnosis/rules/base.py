@@ -99,6 +99,10 @@ class Frame:
     #: (balance rule; None: the rule has none)
     omega_mean_rad_s: NDArray[np.float64] | None = None
     current_mean_a: NDArray[np.float64] | None = None
+    #: the two balances apart, low-passed (balance rule; None: the rule has none): the torque [N·m] and the
+    #: voltage [V] the model cannot account for (model/balance.py, "The two equations apart")
+    torque_residual_nm: NDArray[np.float64] | None = None
+    voltage_residual_v: NDArray[np.float64] | None = None
     #: the speed the motor is expected to turn at (tree rule 1)
     omega_expected_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
     #: the highest stop speed of each sample [rad/s] (tree rule 1, "The lowest input": a share of the free
