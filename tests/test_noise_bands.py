@@ -428,12 +428,14 @@ def test_a_motor_faster_than_identified_and_drawing_less_than_it_needed_there_is
 def test_a_lost_load_is_judged_from_what_the_motor_draws_in_any_air_and_in_the_wait_after_the_step(
     paper_motor,
 ) -> None:
-    """Beyond the identified speeds the lost-load check reads the measured speed and current (low-passed,
-    no model in them) against the load's floor with the motor's quiet band, where the balance rule gives
-    them: in busy air the deviation's band is as wide as the model's error there, which the floor does not
-    need. It judges a motor driven (input not below its low-pass), also while the rule waits after the
-    step the autopilot answers the lost thrust with; not one coasting down, nor a stream not yet started
-    (rules/judged.py)."""
+    """Beyond the identified speeds the lost-load check reads the motor two ways (rules/judged.py). As
+    measured: the low-passed speed and current, no model in them, against the load's floor with the
+    motor's quiet band (in busy air the deviation's band is as wide as the model's error there, which the
+    floor does not need), a motor driven (input not below its low-pass), also while the rule waits after
+    the step the autopilot answers the lost thrust with; not one coasting down, nor a stream not yet
+    started. As judged: the model plus the deviations against their band, where the rule holds the
+    sample, which names a lost load before the motor has run up to its new speed; not where the motor
+    draws what a loaded one needs."""
     from mav_motor_health.diagnosis.rules.base import Frame
     from mav_motor_health.diagnosis.rules.judged import Judged
     from mav_motor_health.model.equations import current_from_speed
@@ -441,40 +443,47 @@ def test_a_lost_load_is_judged_from_what_the_motor_draws_in_any_air_and_in_the_w
     profile = load_profile("flight_vehicle")
     top = 600.0
     quiet_a = 0.3
-    noise = [BandNoise(5.0, quiet_a, omega_low_rad_s=400.0, omega_high_rad_s=top, current_offset_a=0.2)] * 5
+    rows = 6
+    noise = [
+        BandNoise(5.0, quiet_a, omega_low_rad_s=400.0, omega_high_rad_s=top, current_offset_a=0.2)
+    ] * rows
     floor = float(current_from_speed(paper_motor, (1.0 + profile.range_margin) * top)) + 0.2
     quiet_band = profile.noise_bands * quiet_a
     assert 0.3 * floor + quiet_band < floor
     # rows: lost load driven up while waiting; the same coasting down (input below its low-pass); the same
     # driven up before its stream has settled; lost load settled in busy air, where the deviation's band
     # is wider than the floor itself; a healthy motor settled in busy air above the range, whose judged
-    # current (model plus deviation) reads low but which draws what its load needs
-    omega = np.full((5, 1), 1.3 * top)
-    drawn = np.array([0.3, 0.3, 0.3, 0.3, 1.05])[:, None] * floor
+    # current (model plus deviation) reads low but which draws what its load needs; lost load settled in
+    # quiet air, the motor still running up (its mean below the top) while the deviations already imply
+    # a speed beyond it
+    omega = np.full((rows, 1), 1.3 * top)
+    drawn = np.array([0.3, 0.3, 0.3, 0.3, 1.05, 0.8])[:, None] * floor
+    mean_omega = omega.copy()
+    mean_omega[5] = 0.95 * top
     frame = Frame(
         params=paper_motor,
         profile=profile,
-        time_s=np.zeros((5, 1)),
-        voltage_v=np.array([12.0, 6.0, 12.0, 12.0, 12.0])[:, None],
+        time_s=np.zeros((rows, 1)),
+        voltage_v=np.array([12.0, 6.0, 12.0, 12.0, 12.0, 12.0])[:, None],
         omega_rad_s=omega,
         current_a=drawn,
-        counts=[1] * 5,
+        counts=[1] * rows,
         noise=noise,
     )
-    frame.judged_voltage_v = np.array([9.0, 9.0, 9.0, 12.0, 12.0])[:, None]  # the input's low-pass
-    frame.since_step_s = np.array([0.1, 0.1, np.nan, 2.0, 2.0])[:, None]
-    frame.omega_model_rad_s = np.full((5, 1), 2.0 * top)
+    frame.judged_voltage_v = np.array([9.0, 9.0, 9.0, 12.0, 12.0, 12.0])[:, None]  # the input's low-pass
+    frame.since_step_s = np.array([0.1, 0.1, np.nan, 2.0, 2.0, 2.0])[:, None]
+    frame.omega_model_rad_s = np.full((rows, 1), 2.0 * top)
     frame.omega_judged_rad_s = omega
-    frame.current_judged_a = np.array([0.3, 0.3, 0.3, 0.3, 0.3])[:, None] * floor
-    frame.omega_mean_rad_s, frame.current_mean_a = omega, drawn
-    frame.current_band_below_a = np.array([0.5, 0.5, 0.5, 40.0, 0.5])[:, None]
-    frame.sensor_flags = np.zeros((5, 1), dtype=np.int16)
-    frame.state = np.full((5, 1), MotorState.F3_1, dtype=np.int8)
-    frame.steady = np.array([False, False, False, True, True])[:, None]
-    frame.depth = np.zeros((5, 1))
-    Judged(profile).judge(frame, [None] * 5)
-    assert frame.steady[:, 0].tolist() == [True, False, False, True, False]
-    assert frame.eligible[:, 0].tolist() == [True, False, False, True, False]
+    frame.current_judged_a = np.full((rows, 1), 0.3) * floor
+    frame.omega_mean_rad_s, frame.current_mean_a = mean_omega, drawn
+    frame.current_band_below_a = np.array([0.5, 0.5, 0.5, 40.0, 0.5, 0.5])[:, None]
+    frame.sensor_flags = np.zeros((rows, 1), dtype=np.int16)
+    frame.state = np.full((rows, 1), MotorState.F3_1, dtype=np.int8)
+    frame.steady = np.array([False, False, False, True, True, True])[:, None]
+    frame.depth = np.zeros((rows, 1))
+    Judged(profile).judge(frame, [None] * rows)
+    assert frame.steady[:, 0].tolist() == [True, False, False, True, False, True]
+    assert frame.eligible[:, 0].tolist() == [True, False, False, True, False, True]
 
 
 def test_after_a_step_the_bands_widen_by_what_identification_measured_in_each_bin_of_the_wait() -> None:

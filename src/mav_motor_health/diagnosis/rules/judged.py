@@ -10,14 +10,17 @@ propeller load (F3.1: a broken or thrown blade, which the autopilot answers with
 speed a healthy flight shows); it is judged however far beyond the range it turns
 (:func:`_unloaded_beyond`).
 
-Under the balance rule the check reads what the motor does, not the model: its measured speed and current
-low-passed as the balances are, against the floor with the motor's band in quiet input. The deviation's
-band widens with the input's activity because the model's steady state, read at a jittering paired
-command, is far off in busy air (its current by tens of amperes on a heavy vehicle); the floor is the
-load's and needs none of it. What a healthy motor can do below the floor is coast down after its input
-falls, so the check takes a motor driven: its input not below its low-pass. And it judges such a motor
-also while the rule waits after an input step: the autopilot's answer to the lost thrust *is* a step up to
-full command, and waiting it out delayed the alarm by the whole wait; a healthy motor driven up lags below
+The check reads the motor two ways, and a sample either way shows counts. *As judged*: the model plus
+the low-passed deviations against the band below, where the rule holds the sample; the deviations imply
+the steady state at once, so in quiet air a lost load is named before the motor has run up to its new
+speed. *As measured*, under the balance rule: the measured speed and current low-passed as the balances
+are, no model in them, against the floor with the motor's band in quiet input. The deviation's band
+widens with the input's activity because the model's steady state, read at a jittering paired command,
+is far off in busy air (its current by tens of amperes on a heavy vehicle); the floor is the load's and
+needs none of it. What a healthy motor can do below the floor is coast down after its input falls, so
+this view takes a motor driven: its input not below its low-pass. And it judges such a motor also while
+the rule waits after an input step: the autopilot's answer to the lost thrust *is* a step up to full
+command, and waiting it out delayed the alarm by the whole wait; a healthy motor driven up lags below
 its speed and draws more than its load, never less."""
 
 from __future__ import annotations
@@ -76,9 +79,10 @@ class Judged(Rule):
             held = steady  # the rule's own verdict, before the range
             steady = steady & (known | one_of(state, TRANSIENT_OK))
             if not known.all():  # (the lost-load check only where some sample lies beyond)
-                # judged beyond the range, and also while the rule waits after a step: a healthy motor
-                # driven up never shows it
-                steady = steady | (_unloaded_beyond(frame) & (held | _waiting(frame)))
+                # judged beyond the range: as judged, where the rule holds the sample; as measured,
+                # also while it waits after a step (a healthy motor driven up never shows it)
+                judged_view, measured_view = _unloaded_beyond(frame)
+                steady = steady | (judged_view & held) | (measured_view & (held | _waiting(frame)))
         eligible = (steady | one_of(state, TRANSIENT_OK)) & (state != MotorState.NO_DATA)
         if frame.command is not None and profile.min_command > 0:
             idle = np.asarray(frame.command, dtype=float) < profile.min_command  # idle and spin-up
@@ -97,13 +101,20 @@ def _waiting(frame: Frame) -> NDArray[np.bool_]:
     return np.isfinite(since) & ~frame.steady
 
 
-def _unloaded_beyond(frame: Frame) -> NDArray[np.bool_]:
+def _unloaded_beyond(frame: Frame) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """Samples the tree reads as F3.1 whose motor turns faster than the top of its identified speed range
     (widened by ``range_margin``) while drawing less than the model's current at that top, by more than
-    the quiet band below, driven (its input not below its low-pass): a propeller that lost load, whatever
-    the model says beyond the range (module doc). Where the rule low-passes the measurements (the balance
-    rule), the speed and current are those, with no model in them, and the band is the motor's noise in
-    quiet input: the bound is the load's, which holds in any air."""
+    the band below: a propeller that lost load, whatever the model says beyond the range (module doc).
+
+    Two views, each a mask: *as judged*, the rule's speed and current (the model plus the low-passed
+    deviations) against the band below; *as measured*, where the rule low-passes the measurements (the
+    balance rule), those, with no model in them, against the motor's band in quiet input, the motor
+    driven (its input not below its low-pass); all False where the rule has none, and then the judged view
+    also only where the measured current is not at or above the floor. The judged view reads
+    the steady state the deviations imply, and so names a lost load before the motor has run up to it
+    (quiet air: the speed the model expects jumps at once, the measured mean follows the motor's run-up
+    and the low-pass); the measured one needs no model, whose current at a jittering paired command is
+    tens of amperes off in busy air and whose band grows with it."""
     assert frame.noise is not None
     profile = frame.profile
     margin = profile.range_margin
@@ -113,19 +124,25 @@ def _unloaded_beyond(frame: Frame) -> NDArray[np.bool_]:
     # motor's own offset from the shared model, as its model is judged (rules/offsets.py)
     offset = np.array([n.current_offset_a for n in frame.noise], dtype=float)[:, None]
     floor = current_from_speed(frame.params, np.where(np.isfinite(top), top, 0.0)) + offset
-    omega, current, band = frame.omega_judged_rad_s, frame.current_judged_a, frame.current_band_below_a
-    driven: NDArray[np.bool_] | bool = True
-    if frame.omega_mean_rad_s is not None and frame.current_mean_a is not None and profile.noise_bands > 0:
-        omega, current = frame.omega_mean_rad_s, frame.current_mean_a
-        quiet = np.array([n.sigmas(0.0)[1] for n in frame.noise], dtype=float).reshape(-1, 1)
-        band = profile.noise_bands * quiet
-        with np.errstate(invalid="ignore"):
-            driven = frame.voltage_v >= frame.judged_voltage_v
+    lighter = (frame.state == MotorState.F3_1) & frame.current_trusted()
     with np.errstate(invalid="ignore"):
-        return (
-            (frame.state == MotorState.F3_1)
-            & (omega > top)
-            & frame.current_trusted()
-            & (current + band < floor)
-            & driven
+        judged = (
+            lighter
+            & (frame.omega_judged_rad_s > top)
+            & (frame.current_judged_a + frame.current_band_below_a < floor)
         )
+    measured = np.zeros(frame.shape, dtype=bool)
+    if frame.omega_mean_rad_s is not None and frame.current_mean_a is not None and profile.noise_bands > 0:
+        # the judged view only where the motor does not draw what a loaded one needs there (in busy air the
+        # model's current can read low by more than its band while the motor draws its load)
+        with np.errstate(invalid="ignore"):
+            judged &= ~(frame.current_mean_a >= floor)
+        quiet = np.array([n.sigmas(0.0)[1] for n in frame.noise], dtype=float).reshape(-1, 1)
+        with np.errstate(invalid="ignore"):
+            measured = (
+                lighter
+                & (frame.omega_mean_rad_s > top)
+                & (frame.current_mean_a + profile.noise_bands * quiet < floor)
+                & (frame.voltage_v >= frame.judged_voltage_v)
+            )
+    return judged, measured
