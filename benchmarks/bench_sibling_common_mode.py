@@ -38,17 +38,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from mav_motor_health.config import load_profile  # noqa: E402
-from mav_motor_health.diagnosis.noise import band_noise_of  # noqa: E402
-from mav_motor_health.diagnosis.pipeline import diagnose  # noqa: E402
 from mav_motor_health.evaluation.worlds import (  # noqa: E402
     describe_world,
-    fly_flight,
+    diagnose_flight,
     identify_world,
     world_flights,
 )
 from mav_motor_health.sim.worlds import draw_world  # noqa: E402
-from mav_motor_health.sim.writers import write_record  # noqa: E402
-from mav_motor_health.telemetry import sources  # noqa: E402
 
 PROFILE = "flight_vehicle"
 #: each fault's direction in (speed, current) σ: the sign its deviations take (0: not used)
@@ -107,15 +103,8 @@ def one_world(world: int, max_age_s: float) -> dict:
             _, _, vehicle = identify_world(world, folder)
         except Exception as exc:  # a benchmark reports every world, a refusal too
             return {"world": world, "error": f"{type(exc).__name__}: {exc}"}
-        noise = band_noise_of(vehicle.noise)
         for flight in world_flights(world, duration_s=60.0, healthy_flights=1):
-            log = folder / f"{flight.name}.tlog"
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                write_record(fly_flight(flight), log)
-                table = vehicle.calibrate(sources.read(log))
-                result = diagnose(table, vehicle.models(range(1, 7)), profile, noise)
-            log.unlink()
+            result = diagnose_flight(flight, folder, vehicle, profile)
             motors = [int(m) for m in np.unique(result["motor"])]
             per = {m: deviations(result, m, bands) for m in motors}
             times = {m: per[m][0] for m in motors}

@@ -41,20 +41,16 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from mav_motor_health.config import load_profile  # noqa: E402
-from mav_motor_health.diagnosis.noise import band_noise_of  # noqa: E402
-from mav_motor_health.diagnosis.pipeline import diagnose  # noqa: E402
 from mav_motor_health.evaluation.campaign import TURBULENCE_LEVELS  # noqa: E402
 from mav_motor_health.evaluation.worlds import (  # noqa: E402
     describe_world,
-    fly_flight,
+    diagnose_flight,
     identify_world,
     percentile,
     world_flights,
 )
 from mav_motor_health.model.balance import linearised_slopes  # noqa: E402
 from mav_motor_health.sim.worlds import draw_world  # noqa: E402
-from mav_motor_health.sim.writers import write_record  # noqa: E402
-from mav_motor_health.telemetry import sources  # noqa: E402
 
 PROFILE = "flight_vehicle"
 #: each fault: the balance it lives in (index into (Δi, i_T, i_V)) and the sign it moves Δi and that one
@@ -97,16 +93,9 @@ def one_world(world: int) -> dict:
             return {"world": world, "error": f"{type(exc).__name__}: {exc}"}
         if vehicle.current is not None and vehicle.current.side == "unusable":
             return {"world": world, "error": "no usable current (identification)"}
-        noise = band_noise_of(vehicle.noise)
         params = vehicle.models(range(1, 7))
         for flight in world_flights(world, duration_s=60.0, healthy_flights=0, faults=tuple(FAULTS)):
-            log = folder / f"{flight.name}.tlog"
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                write_record(fly_flight(flight), log)
-                table = vehicle.calibrate(sources.read(log))
-                result = diagnose(table, params, profile, noise)
-            log.unlink()
+            result = diagnose_flight(flight, folder, vehicle, profile)
             assert flight.fault is not None and flight.onset_s is not None
             sigmas = []
             signal = [float("nan")] * 3

@@ -15,8 +15,11 @@ from mav_motor_health.evaluation.campaign import FAULTS, TURBULENCE_LEVELS
 from mav_motor_health.evaluation.worlds import (
     ONSET_SHARE,
     WorldEvaluation,
+    diagnose_flight,
     evaluate_world,
+    fly_flight,
     fly_world,
+    identify_world,
     percentile,
     summarise,
     world_flights,
@@ -129,6 +132,33 @@ def test_each_flight_is_scored_against_what_its_scenario_injected(small_evaluati
     assert e.healthy_hours("calm") == pytest.approx(20.0 / 3600.0)  # the healthy flight only
     assert e.healthy_hours("gusty") == 0.0 and e.accuracy("gusty", "F3.1") is None
     assert e.false_events("calm") == e.flights[-1].score.false_events
+
+
+def test_a_flight_diagnosed_for_a_benchmark_is_the_flight_replay_diagnoses(tmp_path):
+    """``diagnose_flight`` (what the benchmarks that need the core's every column use) gives the states
+    replay writes for the same flight and vehicle file, and leaves no log behind."""
+    from mav_motor_health.config import load_profile
+    from mav_motor_health.diagnosis.states import MotorState
+    from mav_motor_health.evaluation.score import read_diagnosis
+    from mav_motor_health.replay import replay_log
+    from mav_motor_health.sim.writers import write_record
+
+    _, _, vehicle = identify_world(KNOWN, tmp_path, identification_s=40.0)
+    flight = world_flights(KNOWN, duration_s=20.0, healthy_flights=0, levels=("calm",), faults=("F3.1",))[0]
+    profile = load_profile("flight_vehicle")
+    folder = tmp_path / "flights"
+    folder.mkdir()
+    result = diagnose_flight(flight, folder, vehicle, profile)
+    assert list(folder.iterdir()) == []
+    log = tmp_path / "replayed.tlog"
+    write_record(fly_flight(flight), log)
+    replay_log(log, tmp_path / "out", vehicle, profile, reissue_warnings=False)
+    written = read_diagnosis(tmp_path / "out" / "diagnosis.csv")
+    np.testing.assert_array_equal(written["state"], result["state"])
+    np.testing.assert_array_equal(written["motor"], result["motor"])
+    # the core's columns replay does not write are there, the lost propeller's torque among them
+    after = (result["motor"] == flight.motor) & (result["state"] == MotorState.F3_1)
+    assert after.any() and np.nanmedian(result["torque_residual_nm"][after]) < 0
 
 
 def test_the_same_seeds_give_the_same_numbers(small_evaluation):

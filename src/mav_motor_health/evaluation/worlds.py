@@ -48,6 +48,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..config import dump_vehicle_params, load_profile, load_vehicle_params
+from ..diagnosis.noise import band_noise_of
+from ..diagnosis.pipeline import diagnose
 from ..diagnosis.profile import ThresholdProfile
 from ..diagnosis.states import MotorState
 from ..errors import MotorHealthError
@@ -59,6 +61,8 @@ from ..sim.faults import FaultSpec
 from ..sim.scenario import TURBULENCE, world_scenario
 from ..sim.worlds import World, draw_world
 from ..sim.writers import truth_path, write_record
+from ..telemetry import sources
+from ..telemetry.table import TelemetryTable
 from .campaign import FAULTS, TURBULENCE_LEVELS
 from .score import Score, read_diagnosis, read_truth, score
 
@@ -70,6 +74,7 @@ __all__ = [
     "WorldFlight",
     "WorldsSummary",
     "describe_world",
+    "diagnose_flight",
     "evaluate_world",
     "fly_flight",
     "fly_world",
@@ -198,6 +203,24 @@ def fly_flight(flight: WorldFlight) -> SimRecord:
         faults=flight.faults(),
         name=flight.name,
     )
+
+
+def diagnose_flight(
+    flight: WorldFlight, folder: Path, vehicle: VehicleParams, profile: ThresholdProfile
+) -> TelemetryTable:
+    """One test flight flown, written to ``folder`` as a .tlog, read back and diagnosed with the vehicle
+    file and the profile as replay does, with every column the core gives (:func:`~..diagnosis.pipeline.
+    diagnose`; replay's ``diagnosis.csv`` keeps fewer); the log and its truth sidecar are removed. The
+    simulator's and the reader's warnings are silenced."""
+    log = folder / f"{flight.name}.tlog"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        write_record(fly_flight(flight), log)
+        table = vehicle.calibrate(sources.read(log))
+        result = diagnose(table, vehicle.models(range(1, 7)), profile, band_noise_of(vehicle.noise))
+    for path in (log, truth_path(log)):
+        path.unlink(missing_ok=True)
+    return result
 
 
 def write_identification_log(world: int, path: str | Path, duration_s: float = 150.0) -> Path:
