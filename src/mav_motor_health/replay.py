@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .diagnosis.noise import band_noise_of
-from .diagnosis.pipeline import DIAGNOSIS_COLUMNS, diagnose
+from .diagnosis.pipeline import DIAGNOSIS_COLUMNS, RESIDUAL_COLUMNS, diagnose
 from .diagnosis.profile import ThresholdProfile
 from .diagnosis.states import MotorState
 from .diagnosis.vehicle_check import VehicleFit, describe_vehicle_fit
@@ -56,8 +56,6 @@ __all__ = [
 #: Columns copied into diagnosis.csv besides the diagnosis itself when the log has them: the two the
 #: motor voltage comes from (voltage_v = throttle × bus_voltage_v).
 CONTEXT_COLUMNS = ("throttle", "bus_voltage_v")
-#: The balance rule's two equations apart, low-passed (model/balance.py): in each event's evidence.
-RESIDUAL_COLUMNS = ("torque_residual_nm", "voltage_residual_v")
 #: A motor whose samples lack speed or current this often is reported as NO_DATA.
 NO_DATA_SHARE = 0.5
 #: A motor whose telemetry ends this long before the others' is reported as NO_DATA (telemetry lost).

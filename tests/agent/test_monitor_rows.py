@@ -63,3 +63,8 @@ def test_all_motors_in_one_call_give_what_per_motor_batches_give(tmp_path, paper
     )
     # the flight holds faults, announced: the comparison is not of NORMAL rows alone
     assert {MotorState.F3_1, MotorState.F2_1} <= {c.state for c in changes_shared}
+    if profile == "flight":  # the balance rule: each change says which equation the motor departs in
+        lost = [c for c in changes_shared if c.state == MotorState.F3_1]
+        assert all(set(c.evidence) >= {"torque_residual_nm", "voltage_residual_v"} for c in changes_shared)
+        # a lighter propeller: torque the model has too much of
+        assert lost[0].evidence["torque_residual_nm"] < 0

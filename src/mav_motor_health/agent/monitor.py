@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..diagnosis.noise import BandNoise
-from ..diagnosis.pipeline import MotorBatch, StreamingDiagnoser
+from ..diagnosis.pipeline import RESIDUAL_COLUMNS, MotorBatch, StreamingDiagnoser
 from ..diagnosis.plausibility import CurrentSumCheck, SensorIssue
 from ..diagnosis.profile import ThresholdProfile
 from ..diagnosis.states import MotorState
@@ -287,8 +287,7 @@ class HealthMonitor:
                     "current_a",
                     "current_model_a",
                     "voltage_v",
-                    "torque_residual_nm",
-                    "voltage_residual_v",
+                    *RESIDUAL_COLUMNS,
                 )
                 if k in row
             },

@@ -31,6 +31,7 @@ from .vehicle_check import VehicleCheck, VehicleFit, apply_vehicle_fit
 
 __all__ = [
     "DIAGNOSIS_COLUMNS",
+    "RESIDUAL_COLUMNS",
     "MotorBatch",
     "MotorCarry",
     "StreamingDiagnoser",
@@ -263,6 +264,10 @@ def _result_columns(frame: Frame) -> dict[str, NDArray]:
     }
 
 
+#: The balance rule's two equations apart, low-passed (model/balance.py, "The two equations apart"): which
+#: equation a motor departs in, in every event's evidence (replay and agent).
+RESIDUAL_COLUMNS = ("torque_residual_nm", "voltage_residual_v")
+
 #: the result columns of :func:`diagnose_motors`
 _RESULT_COLUMNS = (
     "state",
@@ -284,8 +289,7 @@ _RESULT_COLUMNS = (
     "pairing_error_rad_s",
     "detection_level",
     "since_step_s",
-    "torque_residual_nm",
-    "voltage_residual_v",
+    *RESIDUAL_COLUMNS,
 )
 
 
