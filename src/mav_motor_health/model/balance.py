@@ -441,10 +441,11 @@ def balance_deviations_rows(
     delta_w = -sb_mean / d
     # the current at the deviated speed, from eq. 1: Δi = −(k_e·Δω + r_V)/R (= (k_e·r_T − G·r_V)/D)
     delta_i = -(p.k_e * delta_w + rv_mean) / p.R_ohm
-    delta_i = np.where(np.isfinite(i), delta_i, np.nan)
+    current_known = np.isfinite(i)
+    delta_i = np.where(current_known, delta_i, np.nan)
     # the two equations apart (module doc, "The two equations apart")
-    torque = np.where(np.isfinite(i), m_mean - accel_torque, np.nan)
-    rv_mean = np.where(np.isfinite(i), rv_mean, np.nan)
+    torque = np.where(current_known, m_mean - accel_torque, np.nan)
+    rv_mean = np.where(current_known, rv_mean, np.nan)
     result = BalanceResult(
         voltage_v=v_mean,
         omega_model_rad_s=model.omega_rad_s,
