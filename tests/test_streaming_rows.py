@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from mav_motor_health.config import load_profile
-from mav_motor_health.diagnosis.noise import BandNoise
+from mav_motor_health.diagnosis.noise import BandNoise, EquationNoise
 from mav_motor_health.diagnosis.pipeline import MotorBatch, StreamingDiagnoser, diagnose_motor
 from mav_motor_health.diagnosis.plausibility import CurrentSumCheck, PlausibilityRule
 from mav_motor_health.diagnosis.vehicle_check import VehicleCheck, VehicleCheckRule
@@ -70,8 +70,18 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(paper_motor, moto
     profile = load_profile(profile_name)
     rng = np.random.default_rng(7)
     # bands from each motor's own noise (flight_vehicle): every motor a different one, so that a row
-    # given another motor's noise would show
-    noise = {m: BandNoise(6.0 + m, 0.2 + 0.05 * m, 15.0 + m, 0.4) for m in motors}
+    # given another motor's noise would show; the torque balance's too, half of them read through the
+    # duty (an input current: not judged in it, rules/equations.py)
+    noise = {
+        m: BandNoise(
+            6.0 + m,
+            0.2 + 0.05 * m,
+            15.0 + m,
+            0.4,
+            torque=EquationNoise(0.001 + 0.0002 * m, 0.002, 0.0, 0.0003 * m, through_duty=m % 2 == 1),
+        )
+        for m in motors
+    }
     one_by_one = StreamingDiagnoser(paper_motor, profile, list(motors), noise)
     together = StreamingDiagnoser(paper_motor, profile, list(motors), noise)
     position = dict.fromkeys(motors, 0)

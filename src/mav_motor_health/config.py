@@ -277,6 +277,7 @@ _PROFILE_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "range_margin": (0.0, 10.0, ""),
     "conditions_reach": (1.0, 100.0, ""),
     "conditions_growth": (0.0, 4.0, ""),
+    "equation_bands": (0.0, 50.0, ""),
 }
 _VEHICLE_CHECK_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "speed_departure": (0.0, 1.0, ""),
@@ -435,6 +436,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
     if profile.conditions_reach != 1.0:
         lines.append(f"conditions_reach = {profile.conditions_reach!r}")
         lines.append(f"conditions_growth = {profile.conditions_growth!r}")
+    if profile.equation_bands:
+        lines.append(f"equation_bands = {profile.equation_bands!r}")
     lines += [
         "",
         "[steady]",

@@ -151,7 +151,7 @@ def with_band_noise(
     profile_rules = load_profile(profile)
     # while the noise is measured, no band: every sample the rule judges counts (a band would set aside
     # those the log's pairing makes doubtful, and those are part of the noise the bands must cover)
-    unbounded = {m: BandNoise(math.inf, math.inf) for m in range(1, MAX_MOTOR_NUMBER + 1)}
+    unbounded = {m: BandNoise.unbounded() for m in range(1, MAX_MOTOR_NUMBER + 1)}
     diagnosed = []
     for table in tables:
         calibrated = vehicle.calibrate(table)
@@ -159,7 +159,9 @@ def with_band_noise(
         diagnosed.append(diagnose(calibrated, models, profile_rules, unbounded))
     # the rule's wait after a step: how much wider the deviations are while it waits (noise.py)
     settle_s = float(getattr(profile_rules.steady, "settle_s", 0.0))
-    measured = measure_band_noise(diagnosed, profile_rules.min_command, settle_s)
+    # an ESC that reports its input current: the torque balance carries the duty's ripple (noise.py)
+    input_current = vehicle.current is not None and vehicle.current.side == "input"
+    measured = measure_band_noise(diagnosed, profile_rules.min_command, settle_s, input_current)
     noise = {m: dict(v) for m, v in vehicle.noise.items()}
     for motor, band in measured.items():
         noise.setdefault(motor, {}).update(band.as_mapping())

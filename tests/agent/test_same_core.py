@@ -130,13 +130,28 @@ def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor
     batch with the same function replay calibrates the whole table with, and announces what replay
     announces."""
     from mav_motor_health.config import dump_vehicle_params, load_profile, load_vehicle_params
-    from mav_motor_health.diagnosis.noise import BandNoise, band_noise_of
+    from mav_motor_health.diagnosis.noise import BandNoise, EquationNoise, band_noise_of
     from mav_motor_health.model.identify import CurrentReading, EscMap
     from mav_motor_health.model.vehicle import VehicleParams
 
     fields, path = flight
     vehicle_file = tmp_path / "vehicle.toml"
-    noise = {m: BandNoise(6.0 + m, 0.25, 20.0, 0.4, 900, 3.8, 300.0, 900.0).as_mapping() for m in range(1, 7)}
+    # each motor's noise, the torque balance's too: judged in it on motors 1-3, read through the duty
+    # (not judged: rules/equations.py) on 4-6
+    noise = {
+        m: BandNoise(
+            6.0 + m,
+            0.25,
+            20.0,
+            0.4,
+            900,
+            3.8,
+            300.0,
+            900.0,
+            torque=EquationNoise(0.002, 0.004, 0.0, 0.0005, through_duty=m > 3),
+        ).as_mapping()
+        for m in range(1, 7)
+    }
     if (
         profile == "flight"
     ):  # bands in amperes: refused for a file with the vehicle's noise (a hand-written map)

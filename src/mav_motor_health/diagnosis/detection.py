@@ -12,6 +12,12 @@ transistor) slower or less current, neither above; F3.1 (lighter propeller) fast
 UNKNOWN faster with the current not below. Without a trusted current, SLOW and FAST are the speed alone.
 The evidence for a direction is how far the sample lies that way, in σ (0 where it lies another way).
 
+**Each fault in its own balance.** With the profile's ``equation_bands``, F1.1 and F3.1 take their
+evidence from the torque balance instead where it is judged (:mod:`.rules.equations`): the torque's
+departure from the motor's offset in σ of its own noise, above the offset for F1.1, below for F3.1
+(:func:`equation_evidence`). Each is then one half-normal under no fault, which the threshold's
+two-half-normal model covers with room to spare.
+
 **Test.** For each direction, ``S ← max(0, S + (y − k)·Δt/τ_obs)``: ``y`` the evidence, ``k`` the
 reference (``reference_sigmas``: departures below it are not evidence), ``τ_obs = 2·τ`` with ``τ`` the
 deviations' low-pass time constant at the sample (a low-passed signal gives one independent observation
@@ -76,6 +82,7 @@ __all__ = [
     "average_run_length",
     "design_threshold",
     "direction_evidence",
+    "equation_evidence",
     "report_credit",
     "sequential_alarms",
 ]
@@ -273,6 +280,22 @@ def direction_evidence(
     alone = zw if z_omega_alone is None else nan_to_zero(z_omega_alone)
     out[4] = np.where(current_trusted, 0.0, np.maximum(-alone, 0.0))  # SLOW (speed only)
     out[5] = np.where(current_trusted, 0.0, np.maximum(alone, 0.0))  # FAST (speed only)
+    return out
+
+
+def equation_evidence(
+    z_torque: NDArray[np.float64], current_trusted: NDArray[np.bool_], evidence: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The evidence of :func:`direction_evidence` with F1.1 and F3.1 read in the torque balance where it is
+    judged (``z_torque`` finite: its departure from the motor's offset in σ of its own noise; module doc,
+    "Each fault in its own balance"): F1.1 the torque above the offset, F3.1 below it. Elsewhere, and for
+    every other direction, as ``evidence`` has it."""
+    judged = current_trusted & np.isfinite(z_torque)
+    zt = np.where(judged, z_torque, 0.0)
+    out = evidence.copy()
+    f11, f31 = DIRECTIONS.index(MotorState.F1_1), DIRECTIONS.index(MotorState.F3_1)
+    out[f11] = np.where(judged, np.maximum(zt, 0.0), evidence[f11])  # torque the model lacks: friction
+    out[f31] = np.where(judged, np.maximum(-zt, 0.0), evidence[f31])  # load missing: a lighter propeller
     return out
 
 

@@ -61,6 +61,19 @@ motor's σ(a, e) (``after_step_1`` ... in ``[noise.N]``, ≥ 1; NaN where fewer 
 :data:`MIN_AFTER_STEP_SAMPLES` samples fell in the bin). Waiting samples are then judged in bands that
 many times wider; where the bin was not measured the wait holds, as for a vehicle file without them.
 
+**Each equation's own noise.** The deviations mix the model's two balances (:mod:`..model.balance`,
+"The two equations apart"), and friction or a lighter propeller moves only the torque balance; a profile
+with ``equation_bands`` judges those two faults in it (:mod:`.rules.equations`). So the balances' noise is
+measured apart too, on the same judged samples (those with a trusted current) and the same way: the
+low-passed torque residual ``r_T`` [N·m] and voltage residual ``r_V`` [V] around each motor's median (its
+offset, added to the quiet σ in quadrature), σ(a, e) by the same fit (``torque_residual_nm``,
+``..._per_v``, ``..._per_pairing``, ``torque_residual_offset_nm``; ``voltage_residual_v`` alike, written
+for the record of how noisy each balance is, not judged). Beyond the measured conditions and after a step they
+widen by the same factors as the deviations'. Where the ESC reports its input current, the torque is
+read through the duty and its offset moves with the duty's ripple; identification marks it so
+(``torque_residual_through_duty = 1``), and it is not judged (:mod:`.rules.equations`, "An input
+current's ripple").
+
 A profile then sets ``noise_bands = n``: the bands are n·σ(a) of each motor, a dimensionless number that
 is the same for every vehicle. A vehicle file without the noise cannot be diagnosed with such a profile;
 :func:`require_noise` says which key is missing and how to get it.
@@ -81,7 +94,14 @@ from ..errors import ConfigError
 from ..telemetry.table import TelemetryTable
 from .plausibility import CURRENT_UNTRUSTED
 
-__all__ = ["NOISE_KEYS", "BandNoise", "band_noise_of", "measure_band_noise", "require_noise"]
+__all__ = [
+    "NOISE_KEYS",
+    "BandNoise",
+    "EquationNoise",
+    "band_noise_of",
+    "measure_band_noise",
+    "require_noise",
+]
 
 #: the wait after an input step (the balance rule's ``settle_s``) is cut into this many bins, each with its
 #: own measured widening ("After an input step", module doc)
@@ -103,11 +123,42 @@ NOISE_KEYS = {
     "current_a_per_pairing": "A per rad/s of pairing error",
     "pairing_error_high_rad_s": "rad/s",
     **{f"after_step_{b + 1}": "times the settled sigma" for b in range(AFTER_STEP_BINS)},
+    "torque_residual_nm": "N·m",
+    "torque_residual_nm_per_v": "N·m per V of input activity",
+    "torque_residual_nm_per_pairing": "N·m per rad/s of pairing error",
+    "torque_residual_offset_nm": "N·m",
+    "torque_residual_through_duty": "1: an input current over the duty, not judged",
+    "voltage_residual_v": "V",
+    "voltage_residual_v_per_v": "V per V of input activity",
+    "voltage_residual_v_per_pairing": "V per rad/s of pairing error",
+    "voltage_residual_offset_v": "V",
+}
+#: the keys of each equation's noise (module doc, "Each equation's own noise"), in the order of
+#: :class:`EquationNoise`'s fields
+EQUATION_KEYS = {
+    "torque": (
+        "torque_residual_nm",
+        "torque_residual_nm_per_v",
+        "torque_residual_nm_per_pairing",
+        "torque_residual_offset_nm",
+        "torque_residual_through_duty",
+    ),
+    "voltage": (
+        "voltage_residual_v",
+        "voltage_residual_v_per_v",
+        "voltage_residual_v_per_pairing",
+        "voltage_residual_offset_v",
+    ),
 }
 #: the after-step keys in bin order
 AFTER_STEP_KEYS = tuple(f"after_step_{b + 1}" for b in range(AFTER_STEP_BINS))
 #: the keys that may be negative (offsets from the model)
-SIGNED_NOISE_KEYS = ("speed_offset_rad_s", "current_offset_a")
+SIGNED_NOISE_KEYS = (
+    "speed_offset_rad_s",
+    "current_offset_a",
+    "torque_residual_offset_nm",
+    "voltage_residual_offset_v",
+)
 #: the identified speed range: these shares of the judged samples' model speeds lie inside it
 RANGE_SHARES = (0.01, 0.99)
 #: the input activity and pairing error the noise was measured up to: this share of the judged samples'
@@ -126,6 +177,34 @@ MIN_AFTER_STEP_SAMPLES = 200
 MAX_BINS = 6
 #: the pairing error's bins start at these quantiles (its loosest samples in finer bins)
 PAIRING_BIN_SHARES = (0.0, 0.5, 0.75, 0.9, 0.97)
+
+
+@dataclass(frozen=True)
+class EquationNoise:
+    """One motor's healthy spread of one balance of the model, low-passed as the balance rule judges it
+    (the torque r_T [N·m] or the voltage r_V [V], :mod:`..model.balance`): σ(a, e) = √(σ₀² + (c·a)² +
+    (p·e)²) around its offset, as :class:`BandNoise` has it for the deviations (module doc, "Each
+    equation's own noise")."""
+
+    sigma: float
+    per_activity: float = 0.0
+    per_pairing: float = 0.0
+    offset: float = 0.0
+    #: the balance was read from an input current over the duty (rules/equations.py, "An input current's
+    #: ripple"): its offset moves with the duty's ripple, and it is not judged
+    through_duty: bool = False
+
+    def sigmas(
+        self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
+        """σ at each input activity [V] (and pairing error [rad/s], where given)."""
+        a = nan_to_zero(np.asarray(activity_v, dtype=float))
+        sigma = np.hypot(self.sigma, self.per_activity * a)
+        if pairing_error_rad_s is not None and self.per_pairing > 0:
+            sigma = np.hypot(
+                sigma, self.per_pairing * nan_to_zero(np.asarray(pairing_error_rad_s, dtype=float))
+            )
+        return sigma
 
 
 @dataclass(frozen=True)
@@ -163,6 +242,21 @@ class BandNoise:
     #: wider the healthy deviations' tail was than settled (≥ 1; the six motors pooled; NaN: too few
     #: samples to say, not judged there); empty: not measured (every sample waits, as the rule says)
     after_step: tuple[float, ...] = ()
+    #: the healthy spread of the torque and the voltage balance apart (module doc, "Each equation's own
+    #: noise"); None: not measured (a vehicle file from before, or an ESC without a usable current)
+    torque: EquationNoise | None = None
+    voltage: EquationNoise | None = None
+
+    @classmethod
+    def unbounded(cls) -> BandNoise:
+        """A noise of infinite σ everywhere: no band at all (identification runs the rule with it while it
+        measures the noise, so that every sample the rule judges counts)."""
+        return cls(math.inf, math.inf, torque=EquationNoise(math.inf), voltage=EquationNoise(math.inf))
+
+    @property
+    def has_torque_noise(self) -> bool:
+        """Whether the torque balance's own noise was measured (the profile's ``equation_bands`` needs it)."""
+        return self.torque is not None
 
     def sigmas(
         self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
@@ -203,6 +297,13 @@ class BandNoise:
             for key in ("speed_per_pairing", "current_a_per_pairing", "pairing_error_high_rad_s"):
                 del values[key]
         values.update(zip(AFTER_STEP_KEYS, self.after_step))
+        for name, keys in EQUATION_KEYS.items():
+            equation = getattr(self, name)
+            if equation is not None:
+                numbers = (equation.sigma, equation.per_activity, equation.per_pairing, equation.offset)
+                values.update(zip(keys, numbers))
+                if equation.through_duty:
+                    values[keys[4]] = 1.0
         return values
 
     @classmethod
@@ -230,6 +331,8 @@ class BandNoise:
             after_step=tuple(float(values.get(key, math.nan)) for key in AFTER_STEP_KEYS)
             if any(key in values for key in AFTER_STEP_KEYS)
             else (),
+            torque=_equation_of(values, EQUATION_KEYS["torque"]),
+            voltage=_equation_of(values, EQUATION_KEYS["voltage"]),
         )
 
     def after_step_factor(self, since_step_s: ArrayLike, settle_s: float) -> NDArray[np.float64]:
@@ -310,6 +413,15 @@ class BandNoise:
         return np.where(self.in_speed_range(omega_model_rad_s, margin), grown, 1.0)
 
 
+def _equation_of(values: Mapping[str, float], keys: tuple[str, ...]) -> EquationNoise | None:
+    """One equation's noise from a ``[noise.N]`` table (its σ key first); None where it has none."""
+    if keys[0] not in values or not math.isfinite(float(values[keys[0]])):
+        return None
+    sigma, per_activity, per_pairing, offset = (float(values.get(key, 0.0)) for key in keys[:4])
+    through_duty = len(keys) > 4 and float(values.get(keys[4], 0.0)) > 0
+    return EquationNoise(sigma, per_activity, per_pairing, offset, through_duty)
+
+
 def _tail_sigma(deviation: NDArray[np.float64]) -> float:
     return float(np.quantile(np.abs(deviation), TAIL_SHARE) / TAIL_SIGMAS)
 
@@ -358,14 +470,19 @@ def _fit_growth(
 
 
 def measure_band_noise(
-    diagnosed: TelemetryTable | Sequence[TelemetryTable], min_command: float = 0.0, settle_s: float = 0.0
+    diagnosed: TelemetryTable | Sequence[TelemetryTable],
+    min_command: float = 0.0,
+    settle_s: float = 0.0,
+    input_current: bool = False,
 ) -> dict[int, BandNoise]:
     """Each motor's band noise from diagnosed healthy flights (:func:`~.pipeline.diagnose` output of the
     flight rule): its judged samples (steady, commanded above ``min_command``, no sensor issue) and their
     deviations from the model. Motors with fewer than :data:`MIN_MOTOR_SAMPLES` judged samples take the
     vehicle's (all motors pooled); none at all if the vehicle has fewer. With the rule's ``settle_s`` (> 0)
     and its ``since_step_s`` column, also how much wider the deviations are while it waits after a step
-    (:attr:`BandNoise.after_step`)."""
+    (:attr:`BandNoise.after_step`). ``input_current``: the ESC reports its input current, so the torque
+    balance is read through the duty and marked so (not judged: rules/equations.py, "An input current's
+    ripple")."""
     tables = [diagnosed] if isinstance(diagnosed, TelemetryTable) else list(diagnosed)
 
     def column(name: str, dtype: type = float) -> NDArray:
@@ -388,6 +505,12 @@ def measure_band_noise(
     )
     usable &= np.isfinite(dw)
     judged = steady & usable
+    # the two balances apart (module doc, "Each equation's own noise"; none: a rule without them)
+    equations = {
+        name: column(key)
+        for name, key in (("torque", "torque_residual_nm"), ("voltage", "voltage_residual_v"))
+        if all(key in d.names for d in tables)
+    }
     current_flags_ok = (column("sensor_flags", np.int64) & CURRENT_UNTRUSTED) == 0
     current_ok = judged & np.isfinite(di) & current_flags_ok
     motors = column("motor", np.int64)
@@ -404,6 +527,13 @@ def measure_band_noise(
             c0, cc, cp = _fit_growth(activity[current_rows], di[current_rows] - i0, e_current)
             c0 = _with_offset(c0, i0)
             typical = float(np.nanmedian(current[current_rows]))
+        own_equations = {
+            name: _equation_noise(values, current_rows, activity, pairing)
+            for name, values in equations.items()
+        }
+        torque = own_equations.get("torque")
+        if input_current and torque is not None:
+            own_equations["torque"] = replace(torque, through_duty=True)
         low, high = np.nanquantile(omega_model[speed_rows], RANGE_SHARES)
         busiest = float(np.quantile(activity[speed_rows], CONDITION_SHARE))
         paired = e_speed is not None and bool(np.any(e_speed > 0))  # else the log paired exactly
@@ -423,6 +553,8 @@ def measure_band_noise(
             sp,
             cp,
             loosest,
+            torque=own_equations.get("torque"),
+            voltage=own_equations.get("voltage"),
         )
 
     if np.count_nonzero(judged) < MIN_MOTOR_SAMPLES:
@@ -455,6 +587,24 @@ def measure_band_noise(
         if any(math.isfinite(r) for r in after):  # no bin measured: as not measured at all
             out = {m: replace(n, after_step=after) for m, n in out.items()}
     return out
+
+
+def _equation_noise(
+    residual: NDArray[np.float64],
+    rows: NDArray[np.bool_],
+    activity: NDArray[np.float64],
+    pairing: NDArray[np.float64] | None,
+) -> EquationNoise | None:
+    """One balance's noise on these judged samples (those where it is known): σ(a, e) around its median,
+    the median added to the quiet σ in quadrature as for the deviations; None: too few samples."""
+    rows = rows & np.isfinite(residual)
+    if np.count_nonzero(rows) < MIN_MOTOR_SAMPLES:
+        return None
+    offset = float(np.median(residual[rows]))
+    s0, sc, sp = _fit_growth(
+        activity[rows], residual[rows] - offset, None if pairing is None else pairing[rows]
+    )
+    return EquationNoise(_with_offset(s0, offset), sc, sp, offset)
 
 
 def _after_step(

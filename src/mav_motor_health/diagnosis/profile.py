@@ -135,6 +135,10 @@ class ThresholdProfile:
     by ``excess ** conditions_growth`` (≥ 0; excess: how many times the limit the sample lies beyond it),
     so that the bands grow faster there than the noise was measured to grow (:mod:`.noise`, "Beyond the
     measured conditions"). 1, the default: nothing beyond the limits.
+    ``equation_bands`` (n > 0, with ``noise_bands``): friction (F1.1) and a lighter propeller (F3.1),
+    which move the model's torque balance alone, are judged in it, against n times its own noise, which
+    identification measured (:mod:`.rules.equations`). 0, the default: the tree on the speed and current
+    deviations, which mix both balances' noise.
     """
 
     name: str
@@ -157,6 +161,7 @@ class ThresholdProfile:
     range_margin: float = 0.0
     conditions_reach: float = 1.0
     conditions_growth: float = 0.0
+    equation_bands: float = 0.0
     steady: CompareRule = field(default_factory=StepRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
@@ -225,6 +230,13 @@ class ThresholdProfile:
                 key="detection",
                 expected='the sequential test needs bands in noise units (noise_bands > 0) and kind = "balance"',
             )
+        if not (self.equation_bands == 0 or (1 <= self.equation_bands <= 50 and self.noise_bands > 0)):
+            raise ConfigError(
+                f"{self.equation_bands!r}",
+                key="equation_bands",
+                expected="a number of each balance's noise units between 1 and 50 (with noise_bands > 0), "
+                "or 0 (the tree on the speed and current deviations alone)",
+            )
         if not 0 <= self.range_margin <= 10:
             raise ConfigError(
                 f"{self.range_margin!r}",
@@ -277,6 +289,7 @@ class ThresholdProfile:
         the profile has one, persistence. Made once per profile (frozen)."""
         from .rules.announce import Persistence, Sequential
         from .rules.bands import Bands
+        from .rules.equations import Equations
         from .rules.judged import Judged
         from .rules.offsets import HealthyOffsets
         from .rules.pairing import PairingGuard, PairingLimits
@@ -291,6 +304,7 @@ class ThresholdProfile:
             Bands(self),
             PairingLimits(self),
             Tree(self),
+            *([Equations(self)] if self.equation_bands > 0 else []),
             SlowLook(self.slow_band_fraction, self.joint_band_sum),
             Judged(self),
             *([Sequential(self)] if self.detection.on else []),

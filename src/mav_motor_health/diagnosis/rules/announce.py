@@ -9,7 +9,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..._arrays import one_of
-from ..detection import DIRECTIONS, SequentialCarry, direction_evidence, sequential_alarms
+from ..detection import (
+    DIRECTIONS,
+    SequentialCarry,
+    direction_evidence,
+    equation_evidence,
+    sequential_alarms,
+)
 from ..persistence import PersistenceCarry, announce
 from ..states import MotorState
 from .base import Frame, Rule
@@ -57,6 +63,9 @@ class Sequential(Rule):
                 sigmas,
                 z_omega_alone=deviation / (alone_band / sigmas),
             )
+        if frame.z_torque is not None:
+            # friction and a lighter propeller in the torque balance, where it is judged (rules/equations.py)
+            evidence = equation_evidence(frame.z_torque, frame.current_trusted(), evidence)
         # judged: the steady samples the tree named a motor state on (not a stall, a bad sensor, no data)
         judged = frame.steady & ~one_of(frame.state, _NOT_DIRECTIONS)
         observation_s = 2.0 * frame.low_pass_s

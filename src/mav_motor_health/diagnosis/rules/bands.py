@@ -3,6 +3,8 @@ noise times ``noise_bands`` (:mod:`..noise`)."""
 
 from __future__ import annotations
 
+import math
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -18,7 +20,8 @@ __all__ = ["Bands"]
 
 @dataclass(frozen=True)
 class Bands(Rule):
-    """Writes ``speed_band_rad_s``, ``current_band_a`` and ``current_band_below_a`` (half-widths)."""
+    """Writes ``speed_band_rad_s``, ``current_band_a`` and ``current_band_below_a`` (half-widths), and with
+    the profile's ``equation_bands`` the torque balance's, ``torque_band_nm``."""
 
     name = "bands"
     profile: ThresholdProfile
@@ -34,6 +37,13 @@ class Bands(Rule):
             a = np.zeros(shape) if frame.activity_v is None else frame.activity_v
             e = frame.pairing_error_rad_s
             speed, current = np.empty(shape), np.empty(shape)
+            # the torque balance's band, where the profile judges in it: NaN for a motor without its noise
+            # (no usable current: nothing to judge; said once where a motor with a current has none)
+            torque = np.full(shape, np.nan) if profile.equation_bands > 0 else None
+            if torque is not None and any(
+                not n.has_torque_noise and math.isfinite(n.current_a) for n in noise
+            ):
+                _warn_without_torque_noise(profile.name)
             # beyond the conditions σ was measured in, where the profile judges there (noise.py)
             reaching = profile.judges_within_noise_conditions and profile.conditions_reach > 1
             exponent = profile.conditions_growth if reaching else 0.0
@@ -42,21 +52,37 @@ class Bands(Rule):
             for r, motor_noise in enumerate(noise):
                 e_r = None if e is None else e[r]
                 speed[r], current[r] = motor_noise.sigmas(a[r], e_r)
+                widen = np.ones(shape[1])
                 if exponent > 0:
-                    grow = motor_noise.growth(
+                    widen = motor_noise.growth(
                         frame.omega_model_rad_s[r], profile.range_margin, a[r], e_r, exponent
                     )
-                    speed[r] *= grow
-                    current[r] *= grow
                 if after is not None:
-                    widen = np.where(np.isfinite(after[r]), after[r], 1.0)
-                    speed[r] *= widen
-                    current[r] *= widen
+                    widen = widen * np.where(np.isfinite(after[r]), after[r], 1.0)
+                speed[r] *= widen
+                current[r] *= widen
+                if torque is not None and motor_noise.torque and not motor_noise.torque.through_duty:
+                    torque[r] = motor_noise.torque.sigmas(a[r], e_r) * widen
             frame.speed_band_rad_s = profile.noise_bands * speed
             frame.current_band_a = profile.noise_bands * current
             frame.current_band_below_a = frame.current_band_a.copy()
+            if torque is not None:
+                frame.torque_band_nm = profile.equation_bands * torque
         else:
             frame.speed_band_rad_s, frame.current_band_a, frame.current_band_below_a = profile.bands(
                 frame.judged_voltage_v, frame.activity_v
             )
         return carries
+
+
+def _warn_without_torque_noise(profile_name: str) -> None:
+    """Say once (Python's warnings show each place once) that a vehicle file without the torque's noise
+    is judged from the deviations alone, and how to get it."""
+    warnings.warn(
+        f"profile {profile_name!r} judges friction and a lighter propeller in the torque balance "
+        "(equation_bands), and the vehicle's noise has no noise.N.torque_residual_nm (a file written "
+        "before it was measured): they are judged from the speed and current deviations instead; "
+        "`mav-motor-health fit FLIGHT_LOG --out vehicle.toml` measures it",
+        UserWarning,
+        stacklevel=2,
+    )

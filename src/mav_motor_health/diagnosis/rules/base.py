@@ -126,6 +126,9 @@ class Frame:
     current_band_a: NDArray[np.float64] = None  # type: ignore[assignment]
     current_band_below_a: NDArray[np.float64] = None  # type: ignore[assignment]
     pairing_error_rad_s: NDArray[np.float64] | None = None
+    #: the torque balance's band half-width around its motor's offset [N·m] (the profile's
+    #: ``equation_bands``, where every motor's noise has the torque's); None: not judged in it
+    torque_band_nm: NDArray[np.float64] | None = None
 
     # the verdicts
     state: NDArray[np.int8] = None  # type: ignore[assignment]
@@ -134,6 +137,9 @@ class Frame:
     eligible: NDArray[np.bool_] = None  # type: ignore[assignment]
     #: states a later rule announces (the sequential test's directions): persistence leaves them out
     announced_elsewhere: tuple[int, ...] = ()
+    #: the torque balance's departure from its motor's offset in σ of its noise where it is judged in it,
+    #: NaN elsewhere (:mod:`.equations`); None: the faults are read from the speed and current deviations
+    z_torque: NDArray[np.float64] | None = None
     #: the sequential test's alarms and level, where a profile has one
     alarms: NDArray[np.int8] | None = None
     detection_level: NDArray[np.float64] | None = None
