@@ -137,8 +137,9 @@ class ThresholdProfile:
     measured conditions"). 1, the default: nothing beyond the limits.
     ``equation_bands`` (n > 0, with ``noise_bands``): friction (F1.1) and a lighter propeller (F3.1),
     which move the model's torque balance alone, are judged in it, against n times its own noise, which
-    identification measured (:mod:`.rules.equations`). 0, the default: the tree on the speed and current
-    deviations, which mix both balances' noise.
+    identification measured (:mod:`.rules.equations`; not where the ESC reports its input current, whose
+    ripple moves the torque with the air). 0, the default: the tree on the speed and current deviations,
+    which mix both balances' noise.
     """
 
     name: str
