@@ -198,13 +198,8 @@ class EquationNoise:
         self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
     ) -> NDArray[np.float64]:
         """σ at each input activity [V] (and pairing error [rad/s], where given)."""
-        a = nan_to_zero(np.asarray(activity_v, dtype=float))
-        sigma = np.hypot(self.sigma, self.per_activity * a)
-        if pairing_error_rad_s is not None and self.per_pairing > 0:
-            sigma = np.hypot(
-                sigma, self.per_pairing * nan_to_zero(np.asarray(pairing_error_rad_s, dtype=float))
-            )
-        return sigma
+        a, e = _conditions(activity_v, pairing_error_rad_s)
+        return _grown(self.sigma, self.per_activity, self.per_pairing, a, e)
 
 
 @dataclass(frozen=True)
@@ -263,13 +258,9 @@ class BandNoise:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """σ of the speed [rad/s] and current [A] deviations at each input activity [V] (and pairing error
         [rad/s], where given)."""
-        a = nan_to_zero(np.asarray(activity_v, dtype=float))
-        speed = np.hypot(self.speed_rad_s, self.speed_rad_s_per_v * a)
-        current = np.hypot(self.current_a, self.current_a_per_v * a)
-        if pairing_error_rad_s is not None and (self.speed_per_pairing > 0 or self.current_a_per_pairing > 0):
-            e = nan_to_zero(np.asarray(pairing_error_rad_s, dtype=float))
-            speed = np.hypot(speed, self.speed_per_pairing * e)
-            current = np.hypot(current, self.current_a_per_pairing * e)
+        a, e = _conditions(activity_v, pairing_error_rad_s)
+        speed = _grown(self.speed_rad_s, self.speed_rad_s_per_v, self.speed_per_pairing, a, e)
+        current = _grown(self.current_a, self.current_a_per_v, self.current_a_per_pairing, a, e)
         if not math.isfinite(self.current_a):
             current = np.full(a.shape, np.inf)  # no usable current: nothing to compare with
         return speed, current
@@ -413,6 +404,28 @@ class BandNoise:
         return np.where(self.in_speed_range(omega_model_rad_s, margin), grown, 1.0)
 
 
+def _conditions(
+    activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+    """The input activity and the pairing error (None: not given) as σ(a, e) reads them (NaN as 0)."""
+    a = nan_to_zero(np.asarray(activity_v, dtype=float))
+    if pairing_error_rad_s is None:
+        return a, None
+    return a, nan_to_zero(np.asarray(pairing_error_rad_s, dtype=float))
+
+
+def _grown(
+    sigma: float,
+    per_activity: float,
+    per_pairing: float,
+    a: NDArray[np.float64],
+    e: NDArray[np.float64] | None,
+) -> NDArray[np.float64]:
+    """σ(a, e) = √(σ₀² + (c·a)² + (p·e)²); the pairing's term only where ``e`` is given and p > 0."""
+    out = np.hypot(sigma, per_activity * a)
+    return np.hypot(out, per_pairing * e) if e is not None and per_pairing > 0 else out
+
+
 def _equation_of(values: Mapping[str, float], keys: tuple[str, ...]) -> EquationNoise | None:
     """One equation's noise from a ``[noise.N]`` table (its σ key first); None where it has none."""
     if keys[0] not in values or not math.isfinite(float(values[keys[0]])):
@@ -516,16 +529,11 @@ def measure_band_noise(
     motors = column("motor", np.int64)
 
     def noise_of(speed_rows: NDArray[np.bool_], current_rows: NDArray[np.bool_]) -> BandNoise:
-        w0 = float(np.median(dw[speed_rows]))
         e_speed = None if pairing is None else pairing[speed_rows]
-        s0, sc, sp = _fit_growth(activity[speed_rows], dw[speed_rows] - w0, e_speed)
-        s0 = _with_offset(s0, w0)
+        s0, sc, sp, w0 = _spread(dw, speed_rows, activity, pairing)
         c0, cc, cp, typical, i0 = math.nan, 0.0, 0.0, math.nan, 0.0
         if np.count_nonzero(current_rows) >= MIN_MOTOR_SAMPLES:
-            i0 = float(np.median(di[current_rows]))
-            e_current = None if pairing is None else pairing[current_rows]
-            c0, cc, cp = _fit_growth(activity[current_rows], di[current_rows] - i0, e_current)
-            c0 = _with_offset(c0, i0)
+            c0, cc, cp, i0 = _spread(di, current_rows, activity, pairing)
             typical = float(np.nanmedian(current[current_rows]))
         own_equations = {
             name: _equation_noise(values, current_rows, activity, pairing)
@@ -600,11 +608,22 @@ def _equation_noise(
     rows = rows & np.isfinite(residual)
     if np.count_nonzero(rows) < MIN_MOTOR_SAMPLES:
         return None
-    offset = float(np.median(residual[rows]))
+    return EquationNoise(*_spread(residual, rows, activity, pairing))
+
+
+def _spread(
+    values: NDArray[np.float64],
+    rows: NDArray[np.bool_],
+    activity: NDArray[np.float64],
+    pairing: NDArray[np.float64] | None,
+) -> tuple[float, float, float, float]:
+    """σ₀, c and p of σ(a, e) (:func:`_fit_growth`) of ``values`` on ``rows`` around their median, the
+    median (the motor's offset) added to σ₀ in quadrature (:func:`_with_offset`), and the median."""
+    offset = float(np.median(values[rows]))
     s0, sc, sp = _fit_growth(
-        activity[rows], residual[rows] - offset, None if pairing is None else pairing[rows]
+        activity[rows], values[rows] - offset, None if pairing is None else pairing[rows]
     )
-    return EquationNoise(_with_offset(s0, offset), sc, sp, offset)
+    return _with_offset(s0, offset), sc, sp, offset
 
 
 def _after_step(

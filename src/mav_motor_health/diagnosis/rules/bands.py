@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .base import Frame, Rule
 
@@ -52,7 +53,7 @@ class Bands(Rule):
             for r, motor_noise in enumerate(noise):
                 e_r = None if e is None else e[r]
                 speed[r], current[r] = motor_noise.sigmas(a[r], e_r)
-                widen = np.ones(shape[1])
+                widen: NDArray[np.float64] | float = 1.0  # grown beyond the conditions, after a step
                 if exponent > 0:
                     widen = motor_noise.growth(
                         frame.omega_model_rad_s[r], profile.range_margin, a[r], e_r, exponent
