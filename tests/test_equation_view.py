@@ -147,7 +147,10 @@ def test_friction_and_a_lighter_propeller_are_named_in_the_torque_balance(motor,
 
 def test_a_vehicle_file_without_the_torques_noise_is_judged_as_before_and_says_so(motor, flights, noise):
     profile = load_profile("flight_vehicle")
-    older = {m: dataclasses.replace(n, torque=None, voltage=None) for m, n in noise.items()}
+    older = {
+        m: dataclasses.replace(n, torque=None, voltage=None, torque_vs_siblings=None)
+        for m, n in noise.items()
+    }
     table = flights["F1.1"].table
     with pytest.warns(UserWarning, match="torque_residual_nm"):
         r = diagnose(table, motor, profile, older)
@@ -167,8 +170,11 @@ def test_a_torque_read_through_the_duty_is_not_judged_the_deviations_judge(motor
     profile = load_profile("flight_vehicle")
     table = flights["F1.1"].table
     before = diagnose(table, motor, dataclasses.replace(profile, equation_bands=0.0), noise)
+    # a file without the torque against its siblings (before .siblings), its torque through the duty
     through = {
-        m: dataclasses.replace(n, torque=dataclasses.replace(n.torque, through_duty=True))
+        m: dataclasses.replace(
+            n, torque=dataclasses.replace(n.torque, through_duty=True), torque_vs_siblings=None
+        )
         for m, n in noise.items()
         if n.torque is not None
     }
@@ -188,9 +194,14 @@ def test_tiny_torque_noise_makes_healthy_motors_faulty_the_bands_bite(motor, fli
     profile = load_profile("flight_vehicle")
     table = flights["healthy"].table
     tight = {
-        m: dataclasses.replace(n, torque=EquationNoise(0.05 * n.torque.sigma, 0.0, 0.0, n.torque.offset))
+        m: dataclasses.replace(
+            n,
+            torque_vs_siblings=EquationNoise(
+                0.05 * n.torque_vs_siblings.sigma, 0.0, 0.0, n.torque_vs_siblings.offset
+            ),
+        )
         for m, n in noise.items()
-        if n.torque is not None
+        if n.torque_vs_siblings is not None
     }
     r = diagnose(table, motor, profile, tight)
     judged = r["steady"]
@@ -218,3 +229,34 @@ def test_the_sequential_test_reads_friction_and_a_lighter_propeller_in_the_torqu
     for d in (MotorState.F4_1, MotorState.UNKNOWN, MotorState.SLOW, MotorState.FAST):
         np.testing.assert_array_equal(row[d], old[d])
     assert before[DIRECTIONS.index(MotorState.F1_1), 0] == DIRECTIONS.index(MotorState.F1_1) * 4
+
+
+def test_a_current_every_motor_gains_alike_is_judged_against_the_siblings_not_named_friction(
+    motor, flights, noise
+) -> None:
+    """An input current's ripple adds about the same current to every motor (diagnosis/siblings.py): a
+    torque judged on its own names every motor F1.1, judged against its siblings none."""
+    profile = load_profile("flight_vehicle")
+    table = flights["healthy"].table
+    n = noise[1]
+    assert n.torque is not None and n.torque_vs_siblings is not None  # identification measured both
+    # a current every motor gains after 10 s: 8 σ of the torque balance's own noise, in amperes
+    extra_a = 8.0 * n.torque.sigma / motor.k_t
+    columns = {name: np.array(table[name], copy=True) for name in table.names}
+    later = columns["time_s"] > 10.0
+    for name in ("current_a", "esc_current_a"):
+        if name in columns:
+            columns[name][later] += extra_a
+    if "battery_current_a" in columns:  # the battery monitor sees the six motors' (the sum check agrees)
+        columns["battery_current_a"][later] += 6 * extra_a
+    shifted = TelemetryTable(columns, source=table.source, meta=table.meta)
+    on_its_own = {m: dataclasses.replace(v, torque_vs_siblings=None) for m, v in noise.items()}
+    alone = diagnose(shifted, motor, profile, on_its_own)
+    siblings = diagnose(shifted, motor, profile, noise)
+    sel = (alone["time_s"] > 12.0) & alone["steady"]
+    assert np.mean(alone["state"][sel] == MotorState.F1_1) > 0.5
+    assert MotorState.F1_1 in set(alone["announced"].tolist())
+    judged = np.isfinite(siblings["torque_siblings_nm"][sel])
+    assert judged.mean() > 0.8  # not by setting the samples aside
+    assert np.mean(siblings["state"][sel] == MotorState.F1_1) < 0.01
+    assert MotorState.F1_1 not in set(siblings["announced"].tolist())

@@ -27,6 +27,10 @@ DISCRETE = ("state", "announced", "steady", "sensor_flags", "slow_ready")
 
 @pytest.fixture(scope="module", params=[False, True], ids=["all samples", "lost samples"])
 def motors(request: pytest.FixtureRequest) -> dict[int, dict[str, np.ndarray]]:
+    return _window(lost=request.param)
+
+
+def _window(lost: bool) -> dict[int, dict[str, np.ndarray]]:
     table = sources.read(FLIGHT).sorted_by_motor_time()
     window = (table["time_s"] > 22.0) & (table["time_s"] < 38.0)
     rng = np.random.default_rng(18)
@@ -34,7 +38,7 @@ def motors(request: pytest.FixtureRequest) -> dict[int, dict[str, np.ndarray]]:
     for motor in table.motors():
         sel = window & (table["motor"] == motor)
         cols = {name: np.array(table[name][sel], dtype=float) for name in table.names}
-        if request.param:
+        if lost:
             cols["omega_rad_s"][rng.random(cols["time_s"].size) < 0.03] = np.nan  # lost samples
             cols["esc_current_a"][rng.random(cols["time_s"].size) < 0.03] = np.nan
         out[int(motor)] = cols
@@ -140,6 +144,74 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(paper_motor, moto
             np.testing.assert_array_equal(rows[name], whole[name], err_msg=f"motor {m}: {name}")
     if profile_name in ("flight", "flight_vehicle"):  # the stall was seen, and named the same way in both
         assert (np.concatenate([p["announced"] for p in parts_all[1]]) != 0).any()
+
+
+def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor) -> None:
+    """With the torque judged against the siblings (diagnosis/siblings.py), a motor's results depend on
+    the others': batches cut in the order samples arrive (time, then motor) through
+    :meth:`StreamingDiagnoser.update_motors` give what :func:`diagnose` gives the whole table. (Every
+    sample given: a batch ending on a lost sample differs by a sample for its own reason, see above.)"""
+    motors = _window(lost=False)
+    from mav_motor_health.diagnosis.pipeline import diagnose
+    from mav_motor_health.telemetry.table import TelemetryTable
+
+    profile = load_profile("flight_vehicle")
+    noise = {
+        m: BandNoise(
+            6.0 + m,
+            0.2 + 0.05 * m,
+            15.0 + m,
+            0.4,
+            torque=EquationNoise(0.001, 0.002, 0.0, 0.0, through_duty=True),
+            torque_vs_siblings=EquationNoise(0.0003 + 0.0001 * m, 0.001, 0.0, 0.0001),
+        )
+        for m in motors
+    }
+    names = ("time_s", "voltage_v", "omega_rad_s", "current_a", "bus_voltage_v", "throttle", "esc_current_a")
+    table = TelemetryTable(
+        {
+            "motor": np.concatenate([np.full(motors[m]["time_s"].size, m) for m in motors]),
+            **{name: np.concatenate([motors[m][name] for m in motors]) for name in names},
+        }
+    )
+    whole = diagnose(table, paper_motor, profile, noise)
+    assert np.isfinite(whole["torque_siblings_nm"]).mean() > 0.5  # the stage ran
+    arrival = np.lexsort((whole["motor"], whole["time_s"]))
+    stream = StreamingDiagnoser(paper_motor, profile, list(motors), noise)
+    rng = np.random.default_rng(19)
+    got = {name: np.full(len(whole), np.nan) for name in ("state", "announced", "torque_siblings_nm")}
+    k = 0
+    while k < arrival.size:
+        size = int(rng.integers(1, 30))
+        part = arrival[k : k + size]
+        k += size
+        batches = {}
+        for m in np.unique(whole["motor"][part]).tolist():
+            rows = part[whole["motor"][part] == m]
+            if not (np.isfinite(whole["omega_rad_s"][rows]) | np.isfinite(whole["current_a"][rows])).any():
+                continue
+            rows = rows[np.isfinite(whole["omega_rad_s"][rows]) | np.isfinite(whole["current_a"][rows])]
+            batches[m] = MotorBatch(
+                whole["time_s"][rows],
+                whole["voltage_v"][rows],
+                whole["omega_rad_s"][rows],
+                whole["current_a"][rows],
+                whole["bus_voltage_v"][rows],
+                command=whole["throttle"][rows],
+                sensor_current_a=whole["esc_current_a"][rows],
+                extra_flags=np.zeros(rows.size, dtype=np.int16),
+            )
+            batches[m] = (batches[m], rows)  # type: ignore[assignment]
+        results = stream.update_motors({m: b for m, (b, _) in batches.items()})  # type: ignore[misc]
+        for m, (_, rows) in batches.items():  # type: ignore[misc]
+            for name in got:
+                got[name][rows] = results[m][name]
+    measured = np.isfinite(whole["omega_rad_s"]) | np.isfinite(whole["current_a"])
+    for name in ("state", "announced"):
+        np.testing.assert_array_equal(got[name][measured], whole[name][measured], err_msg=name)
+    np.testing.assert_allclose(
+        got["torque_siblings_nm"][measured], whole["torque_siblings_nm"][measured], rtol=1e-9, equal_nan=True
+    )
 
 
 def test_vehicle_check_row_by_row_equals_whole_arrays() -> None:

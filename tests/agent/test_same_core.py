@@ -137,7 +137,8 @@ def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor
     fields, path = flight
     vehicle_file = tmp_path / "vehicle.toml"
     # each motor's noise, the torque balance's too: judged in it on motors 1-3, read through the duty
-    # (not judged: rules/equations.py) on 4-6
+    # (not judged: rules/equations.py) on 4-6; against the siblings' (diagnosis/siblings.py) on 2-5,
+    # where the vehicle stage runs across the motors in the order their samples arrive
     noise = {
         m: BandNoise(
             6.0 + m,
@@ -149,6 +150,7 @@ def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor
             300.0,
             900.0,
             torque=EquationNoise(0.002, 0.004, 0.0, 0.0005, through_duty=m > 3),
+            torque_vs_siblings=EquationNoise(0.0004, 0.001, 0.0, 0.0001) if 2 <= m <= 5 else None,
         ).as_mapping()
         for m in range(1, 7)
     }
@@ -169,6 +171,7 @@ def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor
     assert not np.array_equal(batch["state"], plain["state"])  # the map changes what is judged
     if profile == "flight_vehicle":
         np.testing.assert_allclose(batch["speed_band_rad_s"][batch["motor"] == 3][:1], [4.5 * 9.0], rtol=0.01)
+        assert np.isfinite(batch["torque_siblings_nm"]).mean() > 0.5  # the vehicle stage ran
 
     rows: list[dict] = []
     config = load_agent_config(None, connect=str(path), profile=profile, params=str(vehicle_file))
@@ -190,6 +193,15 @@ def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor
             [r["announced"] for r in live], batch["announced"][sel], err_msg=f"motor {motor}"
         )
         np.testing.assert_array_equal([r["sensor_flags"] for r in live], batch["sensor_flags"][sel])
+        if profile == "flight_vehicle":  # the siblings' torque, sample by sample
+            np.testing.assert_allclose(
+                [r["torque_siblings_nm"] for r in live],
+                batch["torque_siblings_nm"][sel],
+                rtol=1e-9,
+                atol=1e-12,
+                equal_nan=True,
+                err_msg=f"motor {motor}",
+            )
 
 
 def test_a_simulated_tlog_streamed_through_the_agent_gives_replays_samples(paper_motor):

@@ -71,8 +71,12 @@ offset, added to the quiet σ in quadrature), σ(a, e) by the same fit (``torque
 for the record of how noisy each balance is, not judged). Beyond the measured conditions and after a step they
 widen by the same factors as the deviations'. Where the ESC reports its input current, the torque is
 read through the duty and its offset moves with the duty's ripple; identification marks it so
-(``torque_residual_through_duty = 1``), and it is not judged (:mod:`.rules.equations`, "An input
-current's ripple").
+(``torque_residual_through_duty = 1``). What is judged is the torque against the median of the other
+motors' (:mod:`.siblings`), whose noise is measured the same way on the same samples
+(``torque_vs_siblings_nm``, ``..._per_v``, ``..._per_pairing``, ``torque_vs_siblings_offset_nm``; where
+the sample had a reference): the ripple and the model's error away from the flight's operating point are
+common to all motors and leave it (:mod:`.rules.equations`, "An input current's ripple, and the
+siblings").
 
 A profile then sets ``noise_bands = n``: the bands are n·σ(a) of each motor, a dimensionless number that
 is the same for every vehicle. A vehicle file without the noise cannot be diagnosed with such a profile;
@@ -128,6 +132,10 @@ NOISE_KEYS = {
     "torque_residual_nm_per_pairing": "N·m per rad/s of pairing error",
     "torque_residual_offset_nm": "N·m",
     "torque_residual_through_duty": "1: an input current over the duty, not judged",
+    "torque_vs_siblings_nm": "N·m",
+    "torque_vs_siblings_nm_per_v": "N·m per V of input activity",
+    "torque_vs_siblings_nm_per_pairing": "N·m per rad/s of pairing error",
+    "torque_vs_siblings_offset_nm": "N·m",
     "voltage_residual_v": "V",
     "voltage_residual_v_per_v": "V per V of input activity",
     "voltage_residual_v_per_pairing": "V per rad/s of pairing error",
@@ -143,6 +151,12 @@ EQUATION_KEYS = {
         "torque_residual_offset_nm",
         "torque_residual_through_duty",
     ),
+    "torque_vs_siblings": (
+        "torque_vs_siblings_nm",
+        "torque_vs_siblings_nm_per_v",
+        "torque_vs_siblings_nm_per_pairing",
+        "torque_vs_siblings_offset_nm",
+    ),
     "voltage": (
         "voltage_residual_v",
         "voltage_residual_v_per_v",
@@ -157,6 +171,7 @@ SIGNED_NOISE_KEYS = (
     "speed_offset_rad_s",
     "current_offset_a",
     "torque_residual_offset_nm",
+    "torque_vs_siblings_offset_nm",
     "voltage_residual_offset_v",
 )
 #: the identified speed range: these shares of the judged samples' model speeds lie inside it
@@ -241,17 +256,32 @@ class BandNoise:
     #: noise"); None: not measured (a vehicle file from before, or an ESC without a usable current)
     torque: EquationNoise | None = None
     voltage: EquationNoise | None = None
+    #: the torque balance minus the median of the other motors' (:mod:`.siblings`): its healthy spread,
+    #: which the torque is judged against where measured; None: not measured (a file from before)
+    torque_vs_siblings: EquationNoise | None = None
 
     @classmethod
     def unbounded(cls) -> BandNoise:
         """A noise of infinite σ everywhere: no band at all (identification runs the rule with it while it
         measures the noise, so that every sample the rule judges counts)."""
-        return cls(math.inf, math.inf, torque=EquationNoise(math.inf), voltage=EquationNoise(math.inf))
+        inf = EquationNoise(math.inf)
+        return cls(math.inf, math.inf, torque=inf, voltage=inf, torque_vs_siblings=inf)
 
     @property
     def has_torque_noise(self) -> bool:
         """Whether the torque balance's own noise was measured (the profile's ``equation_bands`` needs it)."""
-        return self.torque is not None
+        return self.torque is not None or self.torque_vs_siblings is not None
+
+    @property
+    def torque_judged(self) -> EquationNoise | None:
+        """The torque noise the profile's ``equation_bands`` judges with (:mod:`.rules.equations`): against
+        the siblings where measured, else the torque's own unless read through the duty; None: not
+        judged."""
+        if self.torque_vs_siblings is not None:
+            return self.torque_vs_siblings
+        if self.torque is not None and not self.torque.through_duty:
+            return self.torque
+        return None
 
     def sigmas(
         self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
@@ -324,6 +354,7 @@ class BandNoise:
             else (),
             torque=_equation_of(values, EQUATION_KEYS["torque"]),
             voltage=_equation_of(values, EQUATION_KEYS["voltage"]),
+            torque_vs_siblings=_equation_of(values, EQUATION_KEYS["torque_vs_siblings"]),
         )
 
     def after_step_factor(self, since_step_s: ArrayLike, settle_s: float) -> NDArray[np.float64]:
@@ -524,6 +555,9 @@ def measure_band_noise(
         for name, key in (("torque", "torque_residual_nm"), ("voltage", "voltage_residual_v"))
         if all(key in d.names for d in tables)
     }
+    # the torque against the median of the other motors' (.siblings), where the vehicle stage gave one
+    if "torque" in equations and all("torque_siblings_nm" in d.names for d in tables):
+        equations["torque_vs_siblings"] = equations["torque"] - column("torque_siblings_nm")
     current_flags_ok = (column("sensor_flags", np.int64) & CURRENT_UNTRUSTED) == 0
     current_ok = judged & np.isfinite(di) & current_flags_ok
     motors = column("motor", np.int64)
@@ -563,6 +597,7 @@ def measure_band_noise(
             loosest,
             torque=own_equations.get("torque"),
             voltage=own_equations.get("voltage"),
+            torque_vs_siblings=own_equations.get("torque_vs_siblings"),
         )
 
     if np.count_nonzero(judged) < MIN_MOTOR_SAMPLES:

@@ -1,14 +1,21 @@
 """The diagnosis pipeline: a loop over the profile's rules (:attr:`.profile.ThresholdProfile.rules`:
-comparison with the model → sensors → bands → pairing → tree → slow look → judged → sequential test →
-persistence; :mod:`.rules`).
+comparison with the model → sensors → bands → pairing → tree → [vehicle stage] → torque balance → slow
+look → judged → sequential test → persistence; :mod:`.rules`).
 
-:func:`diagnose_motors` is the single implementation: rows of samples, one row per motor, each with the
-carry from its previous call; every rule keeps its state in that carry and looks back only, so a split of
-a motor's samples into calls gives the same states (but see :func:`~..model.dynamics.first_order_response`
-on a call that ends on a lost sample). Replay calls it once per motor with the whole log
-(:func:`diagnose_motor`); the live agent calls it with every motor's few new samples at once (see
-:class:`StreamingDiagnoser`), the same code for one sample or a million. Both therefore announce the same
-states.
+The vehicle stage (:mod:`.siblings`) is the one step that looks across motors: before the rule that
+judges a motor's torque against its siblings', every motor's call is run up to it
+(:func:`start_motors`, a :class:`StartedCall`), the siblings' reference is worked out over all of them in
+the order the samples arrive (:func:`run_vehicle_stage`), and then each call finishes. It runs only where
+a motor's noise was measured against its siblings (:func:`judges_siblings`).
+
+:func:`start_motors` with :meth:`StartedCall.finish` is the single implementation (:func:`diagnose_motors`
+runs both, without the stage): rows of samples, one row per motor, each with the carry from its previous
+call; every rule keeps its state in that carry and looks back only, so a split of a motor's samples into
+calls gives the same states (but see :func:`~..model.dynamics.first_order_response` on a call that ends
+on a lost sample). Replay (:func:`diagnose`) starts one call per motor with the whole log, runs the
+vehicle stage over them and finishes each; the live agent does the same with every motor's few new
+samples at once (see :class:`StreamingDiagnoser`), the same code for one sample or a million. Both
+therefore announce the same states, where the agent's batches come in the order the samples arrive.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ from .noise import BandNoise, require_noise
 from .plausibility import CurrentSumCheck, SensorIssue
 from .profile import ThresholdProfile
 from .rules.base import Frame, Rule
+from .siblings import SiblingTorque
 from .states import MotorState
 from .vehicle_check import VehicleCheck, VehicleFit, apply_vehicle_fit
 
@@ -137,13 +145,51 @@ def diagnose_motor(
     far apart the source may have paired each sample and its command [s], which the balance rule weighs
     (:mod:`.pairing`): one value per sample (a log table's ``pairing_s`` column, the live agent's samples'),
     or one number for all (None or 0: the command of the sample's own instant). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
-    bands from (:mod:`.noise`).
+    bands from (:mod:`.noise`). A motor alone has no siblings (:mod:`.siblings`): :func:`start_motor`
+    and :meth:`StartedCall.finish` with the vehicle stage between them judge the torque against them.
     """
+    cols, (new,) = start_motor(
+        params,
+        profile,
+        time_s,
+        voltage_v,
+        omega_rad_s,
+        current_a,
+        bus_voltage_v,
+        carry,
+        command=command,
+        sensor_current_a=sensor_current_a,
+        extra_flags=extra_flags,
+        context=context,
+        pairing_s=pairing_s,
+        noise=noise,
+    ).finish()
+    return {name: values[0] for name, values in cols.items()}, new
+
+
+def start_motor(
+    params: MotorParams,
+    profile: ThresholdProfile,
+    time_s: NDArray[np.float64],
+    voltage_v: NDArray[np.float64],
+    omega_rad_s: NDArray[np.float64],
+    current_a: NDArray[np.float64],
+    bus_voltage_v: NDArray[np.float64] | None = None,
+    carry: MotorCarry | None = None,
+    *,
+    command: NDArray[np.float64] | None = None,
+    sensor_current_a: NDArray[np.float64] | None = None,
+    extra_flags: NDArray[np.int16] | None = None,
+    context: Mapping[str, NDArray[np.float64]] | None = None,
+    pairing_s: Pairing = None,
+    noise: BandNoise | None = None,
+) -> StartedCall:
+    """:func:`diagnose_motor` (the same arguments) run up to the vehicle stage: a call of one row."""
 
     def row(x: NDArray | None, dtype: type = float) -> NDArray | None:
         return None if x is None else np.asarray(x, dtype=dtype).reshape(1, -1)
 
-    cols, (new,) = diagnose_motors(
+    return start_motors(
         params,
         profile,
         row(time_s),  # type: ignore[arg-type]
@@ -159,7 +205,55 @@ def diagnose_motor(
         pairing_s=pairing_s if pairing_s is None or np.ndim(pairing_s) == 0 else row(np.asarray(pairing_s)),
         noise=None if noise is None else [noise],
     )
-    return {name: values[0] for name, values in cols.items()}, new
+
+
+def judges_siblings(noise: Mapping[int, BandNoise] | None) -> bool:
+    """Whether a motor of the vehicle is judged against its siblings' torque (its noise was measured so,
+    :mod:`.siblings`): then the vehicle stage runs over every motor."""
+    return noise is not None and any(n.torque_vs_siblings is not None for n in noise.values())
+
+
+def run_vehicle_stage(
+    siblings: SiblingTorque | None, calls: Sequence[tuple[Sequence[int], StartedCall]]
+) -> list[tuple[dict[str, NDArray], list[MotorCarry]]]:
+    """Finish started calls of a vehicle's motors (each with its rows' motor numbers) with the vehicle
+    stage between (:mod:`.siblings`): the siblings' torque reference of every row, from every call's
+    samples together in the order they arrive and the latest ones carried in ``siblings`` (None: no
+    stage, the calls finished without a reference)."""
+    staged = [(motors, call) for motors, call in calls if siblings is not None and call.feeds_siblings]
+    references: dict[int, NDArray[np.float64]] = {}
+    if staged:
+        frames = [call.frame for _, call in staged]
+        width = max(f.shape[1] for f in frames if f is not None)
+
+        def stacked(name: str) -> NDArray[np.float64]:
+            out = np.full((sum(f.shape[0] for f in frames if f is not None), width), np.nan)
+            r = 0
+            for f in frames:
+                assert f is not None
+                values = getattr(f, name)
+                if values is not None:
+                    out[r : r + f.shape[0], : f.shape[1]] = values
+                r += f.shape[0]
+            return out
+
+        counts = [k for f in frames if f is not None for k in f.counts]
+        every = [int(m) for motors, _ in staged for m in motors]
+        assert siblings is not None
+        reference = siblings.reference(
+            every,
+            stacked("time_s"),
+            stacked("torque_residual_nm"),
+            counts,
+            stacked("low_pass_s"),
+        )
+        r = 0
+        for _, call in staged:
+            assert call.frame is not None
+            rows, n = call.frame.shape
+            references[id(call)] = reference[r : r + rows, :n]
+            r += rows
+    return [call.finish(references.get(id(call))) for _, call in calls]
 
 
 def diagnose_motors(
@@ -189,13 +283,89 @@ def diagnose_motors(
     samples of six motors cost about what a few samples of one did. Returns 2-D result columns and the
     rows' new carries; each row's results are those :func:`diagnose_motor` gives for that motor alone.
     ``noise``: each row's motor noise, required by a profile with ``noise_bands``.
+
+    Without the vehicle stage in between (:class:`StartedCall`), a torque judged against its siblings is
+    not judged (:mod:`.siblings`): :func:`diagnose` and :class:`StreamingDiagnoser` run the stage.
     """
+    return start_motors(
+        params,
+        profile,
+        time_s,
+        voltage_v,
+        omega_rad_s,
+        current_a,
+        bus_voltage_v,
+        given_carries,
+        lengths,
+        command=command,
+        sensor_current_a=sensor_current_a,
+        extra_flags=extra_flags,
+        context=context,
+        pairing_s=pairing_s,
+        noise=noise,
+    ).finish()
+
+
+@dataclass
+class StartedCall:
+    """A core call run up to the rule that reads the motors' siblings (:mod:`.siblings`): its frame, the
+    carries given, the rules' new carries so far, and the rules still to run. :meth:`finish` runs them
+    (with the siblings' torque reference, where the vehicle stage gives one)."""
+
+    frame: Frame | None
+    carries: list[MotorCarry]
+    new: list[dict[str, Any]]
+    rest: tuple[Rule, ...]
+
+    @property
+    def feeds_siblings(self) -> bool:
+        """Whether the call has torque residuals and a rule still to run reads the siblings' reference
+        (the vehicle stage takes its rows)."""
+        frame = self.frame
+        return (
+            frame is not None
+            and frame.torque_residual_nm is not None
+            and any(rule.reads_siblings for rule in self.rest)
+        )
+
+    def finish(
+        self, torque_siblings_nm: NDArray[np.float64] | None = None
+    ) -> tuple[dict[str, NDArray], list[MotorCarry]]:
+        """The rest of the rules, with the siblings' torque reference (2-D like the frame; None: none);
+        returns the call's result columns and the rows' new carries."""
+        frame = self.frame
+        if frame is None:
+            return {name: np.zeros((len(self.carries), 0)) for name in _RESULT_COLUMNS}, self.carries
+        frame.torque_siblings_nm = torque_siblings_nm
+        _run_rules(frame, self.rest, self.carries, self.new)
+        return _result_columns(frame), [MotorCarry(rules) for rules in self.new]
+
+
+def start_motors(
+    params: MotorParams,
+    profile: ThresholdProfile,
+    time_s: NDArray[np.float64],
+    voltage_v: NDArray[np.float64],
+    omega_rad_s: NDArray[np.float64],
+    current_a: NDArray[np.float64],
+    bus_voltage_v: NDArray[np.float64] | None = None,
+    given_carries: Sequence[MotorCarry | None] | None = None,
+    lengths: Sequence[int] | None = None,
+    *,
+    command: NDArray[np.float64] | None = None,
+    sensor_current_a: NDArray[np.float64] | None = None,
+    extra_flags: NDArray[np.int16] | None = None,
+    context: Mapping[str, NDArray[np.float64]] | None = None,
+    pairing_s: Pairing = None,
+    noise: Sequence[BandNoise] | None = None,
+) -> StartedCall:
+    """:func:`diagnose_motors` (the same arguments) run up to the vehicle stage (:class:`StartedCall`)."""
     t = np.asarray(time_s, dtype=float)
     rows, n = t.shape
     carries = [c or MotorCarry() for c in given_carries or [None] * rows]
     counts = [n] * rows if lengths is None else [int(k) for k in lengths]
     if n == 0:
-        return {name: np.zeros((rows, 0)) for name in _RESULT_COLUMNS}, carries
+        return StartedCall(None, carries, [], ())
 
     def floats(x: NDArray | None) -> NDArray[np.float64] | None:
         return None if x is None else np.asarray(x, dtype=float)
@@ -219,12 +389,21 @@ def diagnose_motors(
         else floats(np.asarray(pairing_s)),
         noise=noise,
     )
+    rules = profile.rules
+    stage = next((i for i, rule in enumerate(rules) if rule.reads_siblings), len(rules))
     new: list[dict[str, Any]] = [{} for _ in range(rows)]
-    for rule in profile.rules:
+    _run_rules(frame, rules[:stage], carries, new)
+    return StartedCall(frame, carries, new, rules[stage:])
+
+
+def _run_rules(
+    frame: Frame, rules: Sequence[Rule], carries: list[MotorCarry], new: list[dict[str, Any]]
+) -> None:
+    """Advance ``frame`` by ``rules`` in order, each row's new carries into ``new``."""
+    for rule in rules:
         judged = rule.judge(frame, [c.of(rule) for c in carries])
-        for r in range(rows):
-            new[r][rule.name] = judged[r]
-    return _result_columns(frame), [MotorCarry(rules) for rules in new]
+        for r, carry in enumerate(judged):
+            new[r][rule.name] = carry
 
 
 def _result_columns(frame: Frame) -> dict[str, NDArray]:
@@ -260,13 +439,15 @@ def _result_columns(frame: Frame) -> dict[str, NDArray]:
         "detection_level": nan_unless(frame.detection_level),
         "since_step_s": nan_unless(frame.since_step_s),
         "torque_residual_nm": nan_unless(frame.torque_residual_nm),
+        "torque_siblings_nm": nan_unless(frame.torque_siblings_nm),
         "voltage_residual_v": nan_unless(frame.voltage_residual_v),
     }
 
 
-#: The balance rule's two equations apart, low-passed (model/balance.py, "The two equations apart"): which
-#: equation a motor departs in, in every event's evidence (replay and agent).
-RESIDUAL_COLUMNS = ("torque_residual_nm", "voltage_residual_v")
+#: The balance rule's two equations apart, low-passed (model/balance.py, "The two equations apart"), and
+#: the median of the other motors' torque (:mod:`.siblings`): which equation a motor departs in, and
+#: whether alone, in every event's evidence (replay and agent).
+RESIDUAL_COLUMNS = ("torque_residual_nm", "torque_siblings_nm", "voltage_residual_v")
 
 #: the result columns of :func:`diagnose_motors`
 _RESULT_COLUMNS = (
@@ -378,6 +559,7 @@ def diagnose(
         "detection_level": np.full(n, np.nan),
         "since_step_s": np.full(n, np.nan),
         "torque_residual_nm": np.full(n, np.nan),
+        "torque_siblings_nm": np.full(n, np.nan),
         "voltage_residual_v": np.full(n, np.nan),
     }
     motors = ordered["motor"]
@@ -390,6 +572,7 @@ def diagnose(
         return None if values is None else values[sel].copy()
 
     omega_all, current_all = ordered["omega_rad_s"], ordered["current_a"]
+    started: list[tuple[int, NDArray[np.intp] | slice, NDArray[np.intp], StartedCall]] = []
     for motor in ordered.motors():
         rows = np.flatnonzero(motors == motor)
         # Rows without a measurement (an ESC slot that repeated its last packet in a .tlog, a gap in a
@@ -397,13 +580,15 @@ def diagnose(
         # (its input activity scales with the sample interval, and a 10 Hz ESC in 50 Hz messages would
         # look like a 50 Hz one). They read NO_DATA and keep the state announced before them.
         measured = np.isfinite(omega_all[rows]) | np.isfinite(current_all[rows])
-        sel, unmeasured = rows[measured], rows[~measured]
+        sel: NDArray[np.intp] | slice = rows[measured]
+        unmeasured = rows[~measured]
         if unmeasured.size:
             out["state"][unmeasured] = MotorState.NO_DATA
-        if sel.size == 0:
+        if rows[measured].size == 0:
             continue
-        if sel[-1] - sel[0] + 1 == sel.size:  # one run of rows (the table is by motor): copied as a block
-            sel = slice(int(sel[0]), int(sel[-1]) + 1)
+        first, last = int(rows[measured][0]), int(rows[measured][-1])
+        if last - first + 1 == rows[measured].size:  # one run of rows (the table is by motor): a block
+            sel = slice(first, last + 1)
         motor_params = params[motor] if isinstance(params, dict) else params
         context = None
         if motor_params.effects:
@@ -412,7 +597,7 @@ def diagnose(
                 for name in ordered.names
                 if ordered[name].dtype.kind in "biuf"
             }
-        cols, _ = diagnose_motor(
+        call = start_motor(
             motor_params,
             profile,
             ordered["time_s"][sel].copy(),
@@ -431,8 +616,15 @@ def diagnose(
             ),
             noise=None if noise is None else noise.get(int(motor)),
         )
+        started.append((int(motor), sel, unmeasured, call))
+    # the vehicle stage (the siblings' torque, .siblings) with every motor's whole log, then the rest
+    # (none for a bench file's "motors", which are different motors, not one vehicle's)
+    frame_motors = vehicle_motors(table)
+    stage = SiblingTorque(frame_motors) if frame_motors and judges_siblings(noise) else None
+    finished = run_vehicle_stage(stage, [([m], call) for m, _, _, call in started])
+    for (_, sel, unmeasured, _), (cols, _) in zip(started, finished):
         for name, values in cols.items():
-            out[name][sel] = values
+            out[name][sel] = values[0]
         if unmeasured.size:
             if isinstance(sel, slice):
                 sel = np.arange(sel.start, sel.stop)
@@ -485,6 +677,7 @@ def diagnose(
         detection_level=out["detection_level"],
         since_step_s=out["since_step_s"],
         torque_residual_nm=out["torque_residual_nm"],
+        torque_siblings_nm=out["torque_siblings_nm"],
         voltage_residual_v=out["voltage_residual_v"],
         vehicle_fit=vehicle_fit,
     )
@@ -521,6 +714,8 @@ class StreamingDiagnoser:
             require_noise(self.noise, list(motors), profile.name)
         self.carries: dict[int, MotorCarry] = {}
         self.vehicle = self.vehicle_check_for(profile, motors)
+        #: the vehicle stage's latest torque of every motor (.siblings; None: no motor judged so)
+        self.siblings = SiblingTorque([int(m) for m in motors]) if judges_siblings(self.noise) else None
 
     @staticmethod
     def vehicle_check_for(profile: ThresholdProfile, motors: Sequence[int]) -> VehicleCheck:
@@ -612,28 +807,30 @@ class StreamingDiagnoser:
         ``pairing_s``: how far apart the source pairs each sample and its command (one per sample, as the
         live agent's samples give it, or one number; None: at the same instant).
         """
-        motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
-
-        def arr(x: NDArray | None) -> NDArray[np.float64] | None:
-            return None if x is None else np.asarray(x, dtype=float)
-
-        cols, self.carries[motor] = diagnose_motor(
-            motor_params,
-            self.profile,
-            np.asarray(time_s, dtype=float),
-            np.asarray(voltage_v, dtype=float),
-            np.asarray(omega_rad_s, dtype=float),
-            np.asarray(current_a, dtype=float),
-            arr(bus_voltage_v),
-            self.carries.get(motor),
-            command=arr(command),
-            sensor_current_a=arr(sensor_current_a),
-            extra_flags=extra_flags,
-            context=context,
-            pairing_s=pairing_s,
-            noise=self._noise_of([motor])[0] if self.profile.noise_bands > 0 else None,
+        batch = MotorBatch(
+            time_s,
+            voltage_v,
+            omega_rad_s,
+            current_a,
+            bus_voltage_v,
+            command,
+            sensor_current_a,
+            extra_flags,
+            context,
         )
-        return cols
+        call = self._start_many(motor, batch, pairing_s)
+        (cols,) = self._finish([([motor], call)])
+        return {name: values[0] for name, values in cols.items()}
+
+    def _finish(self, calls: list[tuple[list[int], StartedCall]]) -> list[dict[str, NDArray]]:
+        """Started calls finished with the vehicle stage between (:func:`run_vehicle_stage`): each call's
+        2-D result columns; the motors' carries kept."""
+        results = []
+        for (motors, _), (cols, carries) in zip(calls, run_vehicle_stage(self.siblings, calls)):
+            for motor, carry in zip(motors, carries):
+                self.carries[motor] = carry
+            results.append(cols)
+        return results
 
     def _noise_of(self, motors: list[int]) -> list[BandNoise]:
         return list(require_noise(self.noise, motors, self.profile.name).values())
@@ -657,30 +854,53 @@ class StreamingDiagnoser:
                 for name in ("bus_voltage_v", "command", "sensor_current_a", "extra_flags", "pairing_s")
             )
             groups.setdefault((id(motor_params), given), []).append(motor)
-        results: dict[int, dict[str, NDArray]] = {}
+        calls: list[tuple[list[int], StartedCall]] = []
+        counts: dict[int, int] = {}
         for motors in [*groups.values(), *alone]:
+            for m in motors:
+                counts[m] = np.asarray(batches[m].time_s).size
             if len(motors) == 1:
                 b = batches[motors[0]]
-                results[motors[0]] = self.update_many(
-                    motors[0],
-                    b.time_s,
-                    b.voltage_v,
-                    b.omega_rad_s,
-                    b.current_a,
-                    b.bus_voltage_v,
-                    command=b.command,
-                    sensor_current_a=b.sensor_current_a,
-                    extra_flags=b.extra_flags,
-                    context=b.context,
-                    pairing_s=b.pairing_s if b.pairing_s is not None else pairing_s,
+                calls.append(
+                    (
+                        motors,
+                        self._start_many(motors[0], b, b.pairing_s if b.pairing_s is not None else pairing_s),
+                    )
                 )
-                continue
-            results.update(self._update_rows(motors, [batches[m] for m in motors], pairing_s))
+            else:
+                calls.append((motors, self._start_batches(motors, [batches[m] for m in motors], pairing_s)))
+        results: dict[int, dict[str, NDArray]] = {}
+        for (motors, _), cols in zip(calls, self._finish(calls)):
+            for r, motor in enumerate(motors):
+                results[motor] = {name: values[r, : counts[motor]] for name, values in cols.items()}
         return {motor: results[motor] for motor in batches}
 
-    def _update_rows(
+    def _start_many(self, motor: int, b: MotorBatch, pairing_s: Pairing) -> StartedCall:
+        motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
+
+        def arr(x: NDArray | None) -> NDArray[np.float64] | None:
+            return None if x is None else np.asarray(x, dtype=float)
+
+        return start_motor(
+            motor_params,
+            self.profile,
+            np.asarray(b.time_s, dtype=float),
+            np.asarray(b.voltage_v, dtype=float),
+            np.asarray(b.omega_rad_s, dtype=float),
+            np.asarray(b.current_a, dtype=float),
+            arr(b.bus_voltage_v),
+            self.carries.get(motor),
+            command=arr(b.command),
+            sensor_current_a=arr(b.sensor_current_a),
+            extra_flags=b.extra_flags,
+            context=b.context,
+            pairing_s=pairing_s,
+            noise=self._noise_of([motor])[0] if self.profile.noise_bands > 0 else None,
+        )
+
+    def _start_batches(
         self, motors: list[int], batches: list[MotorBatch], pairing_s: float | None
-    ) -> dict[int, dict[str, NDArray]]:
+    ) -> StartedCall:
         counts = [np.asarray(b.time_s).size for b in batches]
         width = max(counts)
         # where each batch's samples go in the rows (row r's first counts[r] places), all at once
@@ -697,11 +917,7 @@ class StreamingDiagnoser:
 
         columns = {name: rows(name) for name in _ROW_INPUTS}
         columns["extra_flags"] = rows("extra_flags", np.int16, 0)
-        cols = self.update_rows(motors, columns, counts, pairing_s if batches[0].pairing_s is None else None)
-        return {
-            motor: {name: values[r, :count] for name, values in cols.items()}
-            for r, (motor, count) in enumerate(zip(motors, counts))
-        }
+        return self._start_rows(motors, columns, counts, pairing_s if batches[0].pairing_s is None else None)
 
     def together(self, motors: Sequence[int]) -> bool:
         """Whether :meth:`update_motors` diagnoses these motors' batches (the same columns given) in one
@@ -725,6 +941,16 @@ class StreamingDiagnoser:
         row's ``counts`` samples NaN, ``extra_flags`` 0, and the times, whatever they hold, are padded here
         with the row's last, in place). Returns 2-D results (the padding's mean nothing). The live agent
         lays its samples out so directly, without a batch per motor in between."""
+        (cols,) = self._finish([(list(motors), self._start_rows(motors, columns, counts, pairing_s))])
+        return cols
+
+    def _start_rows(
+        self,
+        motors: Sequence[int],
+        columns: Mapping[str, NDArray | None],
+        counts: Sequence[int],
+        pairing_s: float | None = None,
+    ) -> StartedCall:
         time_s = columns["time_s"]
         assert time_s is not None
         if min(counts) < time_s.shape[1]:  # padding: the row's last time (no interval), no values
@@ -732,7 +958,7 @@ class StreamingDiagnoser:
                 time_s[r, count:] = time_s[r, count - 1] if count else 0.0
         motor_params = self.params[motors[0]] if isinstance(self.params, dict) else self.params
         pairing = columns.get("pairing_s")
-        cols, carries = diagnose_motors(
+        return start_motors(
             motor_params,
             self.profile,
             time_s,
@@ -748,9 +974,6 @@ class StreamingDiagnoser:
             pairing_s=pairing if pairing is not None else pairing_s,
             noise=self._noise_of(list(motors)) if self.profile.noise_bands > 0 else None,
         )
-        for motor, carry in zip(motors, carries):
-            self.carries[motor] = carry
-        return cols
 
     def announced(self, motor: int) -> MotorState:
         carry = self.carries.get(motor)

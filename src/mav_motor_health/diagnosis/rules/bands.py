@@ -62,8 +62,9 @@ class Bands(Rule):
                     widen = widen * np.where(np.isfinite(after[r]), after[r], 1.0)
                 speed[r] *= widen
                 current[r] *= widen
-                if torque is not None and motor_noise.torque and not motor_noise.torque.through_duty:
-                    torque[r] = motor_noise.torque.sigmas(a[r], e_r) * widen
+                judged_torque = motor_noise.torque_judged
+                if torque is not None and judged_torque is not None:
+                    torque[r] = judged_torque.sigmas(a[r], e_r) * widen
             frame.speed_band_rad_s = profile.noise_bands * speed
             frame.current_band_a = profile.noise_bands * current
             frame.current_band_below_a = frame.current_band_a.copy()

@@ -103,6 +103,9 @@ class Frame:
     #: voltage [V] the model cannot account for (model/balance.py, "The two equations apart")
     torque_residual_nm: NDArray[np.float64] | None = None
     voltage_residual_v: NDArray[np.float64] | None = None
+    #: the median of the other motors' torque residuals before each sample (the vehicle stage,
+    #: :mod:`..siblings`; None: no stage ran, NaN: too few siblings there)
+    torque_siblings_nm: NDArray[np.float64] | None = None
     #: the speed the motor is expected to turn at (tree rule 1)
     omega_expected_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
     #: the highest stop speed of each sample [rad/s] (tree rule 1, "The lowest input": a share of the free
@@ -159,6 +162,8 @@ class Rule(ABC):
 
     #: the rule's name: its key in a motor's carry
     name: ClassVar[str]
+    #: whether the rule reads the other motors' torque (:mod:`..siblings`): the vehicle stage runs before it
+    reads_siblings: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         self.validate()

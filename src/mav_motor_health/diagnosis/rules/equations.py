@@ -22,17 +22,19 @@ and after a step as the deviations' bands are (:mod:`.bands`):
   voltage twice, in the speed and the current, and on the held-out worlds named it more often than the
   voltage balance alone; docs/flight.md).
 
-**An input current's ripple.** Where the ESC reports its input current, the motor current in ``r_T`` is
-that current over the duty, and an input current holds the ripple's copper loss: with the duty jittering
-by σ_d, the mean input current is ``d̄·ī + V·σ_d²/R``, not ``d̄·ī`` (``benchmarks/bench_input_ripple.py``:
-in the simulator's world 5 the motor's own current averages 4.1 A in calm, moderate and gusty air
-alike, while the current the log gives reads 4.2, 4.9 and 11.4 A). ``r_T``'s offset then moves with the
-air, by several σ between calm and moderate, on all motors alike. So identification marks such a
-vehicle's torque noise (``torque_residual_through_duty = 1`` in ``[noise.N]``) and this rule leaves its
-motors to the deviations, which read the current only through the duty-weighted voltage balance. Judging
-it within the input activity of the identification flight only was measured and rejected: it still
-tripled the false events on the held-out worlds (docs/flight.md, "Friction and a lighter propeller
-judged in the torque balance"). An ESC that reports its motor's own current has no such limit.
+**An input current's ripple, and the siblings.** Where the ESC reports its input current, the motor
+current in ``r_T`` is that current over the duty, and an input current holds the ripple's copper loss:
+with the duty jittering by σ_d, the mean input current is ``d̄·ī + V·σ_d²/R``, not ``d̄·ī``
+(``benchmarks/bench_input_ripple.py``: in the simulator's world 5 the motor's own current averages 4.1 A
+in calm, moderate and gusty air alike, while the current the log gives reads 4.2, 4.9 and 11.4 A).
+``r_T``'s offset then moves with the air, by several σ between calm and moderate, on all motors alike.
+So the torque is judged against its siblings (:mod:`..siblings`): ``r_T`` minus the median of the other
+motors' ``r_T``, against that difference's own noise (``[noise.N] torque_vs_siblings_nm ...``), which
+takes off what all motors share (the ripple, and the one model's error at an operating point the
+identification flight did not cover) and keeps what one motor does alone. Where the sample has no such
+reference (fewer than all but one sibling reporting), its torque is not judged. A vehicle file from
+before (the torque's own noise only) is judged in ``r_T`` itself where the ESC reports its motor's own
+current, and by the deviations where ``torque_residual_through_duty = 1`` marks an input current.
 
 The sequential test (:mod:`.announce`) reads the same ``z_T`` for F1.1 and F3.1 where it is judged here
 (``frame.z_torque``, NaN elsewhere). What stays with the deviations: the stop speed and the stall's
@@ -67,6 +69,7 @@ class Equations(Rule):
     it is (module doc); nothing where the bands rule wrote no torque band."""
 
     name = "equations"
+    reads_siblings = True
     profile: ThresholdProfile
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
@@ -74,13 +77,20 @@ class Equations(Rule):
         if band is None or noise is None or frame.torque_residual_nm is None:
             return carries
         n = self.profile.equation_bands
-        offset = np.array([m.torque.offset if m.torque else np.nan for m in noise])[:, None]
-        # a torque read through the duty (an input current) is not judged (module doc)
-        holds = np.array([m.torque is not None and not m.torque.through_duty for m in noise])[:, None]
+        judged_noise = [m.torque_judged for m in noise]
+        # against the siblings where the motor's noise was measured so (module doc); else the torque's own,
+        # but not one read through the duty (an input current)
+        siblings = np.array([m.torque_vs_siblings is not None for m in noise])[:, None]
+        holds = np.array([j is not None for j in judged_noise])[:, None]
         if not holds.any():
             return carries
+        offset = np.array([j.offset if j is not None else np.nan for j in judged_noise])[:, None]
+        reference = frame.torque_siblings_nm
+        if reference is None:  # no vehicle stage ran (a call of its own): none against the siblings
+            reference = np.full(frame.shape, np.nan)
+        torque = np.where(siblings, frame.torque_residual_nm - reference, frame.torque_residual_nm)
         with np.errstate(divide="ignore", invalid="ignore"):
-            z = (frame.torque_residual_nm - offset) / (band / n)
+            z = (torque - offset) / (band / n)
         judged = holds & frame.current_trusted() & np.isfinite(z)
         frame.z_torque = np.where(judged, z, np.nan)
         state, depth = frame.state, frame.depth

@@ -1,0 +1,81 @@
+"""The vehicle stage (diagnosis/siblings.py): each motor's torque against the median of its siblings',
+in the order the live agent receives samples, the same whether given whole or in pieces."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mav_motor_health.diagnosis.siblings import SiblingTorque, median_of_finite
+
+
+def rows(values: list[list[float]]) -> np.ndarray:
+    return np.array(values, dtype=float)
+
+
+def test_a_sample_sees_the_siblings_that_arrived_before_it_time_then_motor_number() -> None:
+    stage = SiblingTorque([1, 2, 3, 4])
+    t = rows([[0.0, 1.0], [0.0, 1.0], [0.0, 1.0], [0.0, 1.0]])
+    v = rows([[1.0, 10.0], [2.0, 20.0], [3.0, 30.0], [4.0, 40.0]])
+    ref = stage.reference([1, 2, 3, 4], t, v, [2, 2, 2, 2], np.full(t.shape, 5.0))
+    # at t = 1 motor 1 comes first: its siblings' latest are those of t = 0 (2, 3, 4)
+    assert ref[0, 1] == 3.0
+    # motor 3 at t = 1: motors 1 and 2 of t = 1 arrived before it, motor 4's latest is of t = 0
+    assert ref[2, 1] == 10.0  # median of 10, 20, 4
+    # motor 4 at t = 1: every sibling's of t = 1
+    assert ref[3, 1] == 20.0
+    # at t = 0 motor 1 has no sibling yet; motor 3 only two of three (1 and 2): enough (all but one)
+    assert np.isnan(ref[0, 0]) and np.isnan(ref[1, 0])
+    assert ref[2, 0] == 1.5 and ref[3, 0] == 2.0
+
+
+def test_a_stale_sibling_does_not_count_and_two_missing_leave_no_reference() -> None:
+    stage = SiblingTorque([1, 2, 3, 4])
+    t = rows([[0.0, 2.0], [0.0, 0.0], [0.0, 0.0], [0.0, 1.95]])
+    v = rows([[1.0, 1.0], [2.0, np.nan], [3.0, np.nan], [4.0, 5.0]])
+    ref = stage.reference([1, 2, 3, 4], t, v, [2, 1, 1, 2], np.full(t.shape, 0.2))
+    # motor 1 at t = 2: motors 2 and 3 last spoke at t = 0 (2 s > 0.2 s old): one fresh sibling only
+    assert np.isnan(ref[0, 1])
+    # padding beyond a row's count is NaN
+    assert np.isnan(ref[1, 1]) and np.isnan(ref[2, 1])
+    # with a longer age allowed, the same samples give one
+    again = SiblingTorque([1, 2, 3, 4]).reference([1, 2, 3, 4], t, v, [2, 1, 1, 2], np.full(t.shape, 5.0))
+    assert again[0, 1] == 3.0  # median of 2, 3, 5
+
+
+def test_pieces_in_arrival_order_give_what_the_whole_gives() -> None:
+    rng = np.random.default_rng(17)
+    motors = [1, 2, 3, 4, 5, 6]
+    n = 400
+    # six ESCs at their own rates, some samples lost (NaN), a common drift and each its own noise
+    times = [np.sort(rng.uniform(0, 20, n)) for _ in motors]
+    values = [np.sin(0.3 * t) + 0.05 * rng.standard_normal(n) for t in times]
+    for v in values:
+        v[rng.random(n) < 0.05] = np.nan
+    age = 0.15
+    whole = SiblingTorque(list(motors)).reference(
+        motors, np.array(times), np.array(values), [n] * 6, np.full((6, n), age)
+    )
+    assert np.isfinite(whole).mean() > 0.5
+    # the siblings' median follows the common drift: each motor's own noise is what remains
+    assert np.nanstd(np.array(values) - whole) < 0.1
+    # pieces: every sample before a cut time in one call, the rest in later calls (as the agent gets them)
+    stage = SiblingTorque(list(motors))
+    pieces = [np.full(n, np.nan) for _ in motors]
+    cuts = np.sort(rng.uniform(0, 20, 30))
+    done = [0] * 6
+    for cut in [*cuts, np.inf]:
+        counts = [int(np.searchsorted(t, cut, side="right")) - d for t, d in zip(times, done)]
+        width = max(max(counts), 1)
+        t_rows, v_rows = np.zeros((6, width)), np.full((6, width), np.nan)
+        for r, (d, k) in enumerate(zip(done, counts)):
+            t_rows[r, :k], v_rows[r, :k] = times[r][d : d + k], values[r][d : d + k]
+        got = stage.reference(motors, t_rows, v_rows, counts, np.full((6, width), age))
+        for r, (d, k) in enumerate(zip(done, counts)):
+            pieces[r][d : d + k] = got[r, :k]
+        done = [d + k for d, k in zip(done, counts)]
+    np.testing.assert_array_equal(np.array(pieces), whole)
+
+
+def test_the_median_of_finite_values_needs_enough_of_them() -> None:
+    values = rows([[1.0, 5.0, np.nan, 3.0], [np.nan, np.nan, 2.0, np.nan], [4.0, 1.0, 2.0, 3.0]])
+    np.testing.assert_array_equal(median_of_finite(values, 2), [3.0, np.nan, 2.5])
