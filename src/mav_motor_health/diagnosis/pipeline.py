@@ -572,7 +572,13 @@ def diagnose(
         return None if values is None else values[sel].copy()
 
     omega_all, current_all = ordered["omega_rad_s"], ordered["current_a"]
+    # the vehicle stage (the siblings' torque, .siblings) runs over every motor's whole log at once; none
+    # for a bench file's "motors" (different motors, not one vehicle's) or a vehicle judged without it,
+    # whose motors finish one by one (one motor's arrays alive at a time)
+    frame_motors = vehicle_motors(table)
+    stage = SiblingTorque(frame_motors) if frame_motors and judges_siblings(noise) else None
     started: list[tuple[int, NDArray[np.intp] | slice, NDArray[np.intp], StartedCall]] = []
+    finished: list[tuple[dict[str, NDArray], list[MotorCarry]]] = []
     for motor in ordered.motors():
         rows = np.flatnonzero(motors == motor)
         # Rows without a measurement (an ESC slot that repeated its last packet in a .tlog, a gap in a
@@ -617,11 +623,11 @@ def diagnose(
             noise=None if noise is None else noise.get(int(motor)),
         )
         started.append((int(motor), sel, unmeasured, call))
-    # the vehicle stage (the siblings' torque, .siblings) with every motor's whole log, then the rest
-    # (none for a bench file's "motors", which are different motors, not one vehicle's)
-    frame_motors = vehicle_motors(table)
-    stage = SiblingTorque(frame_motors) if frame_motors and judges_siblings(noise) else None
-    finished = run_vehicle_stage(stage, [([m], call) for m, _, _, call in started])
+        if stage is None:
+            finished.append(call.finish())
+            started[-1] = (int(motor), sel, unmeasured, StartedCall(None, [], [], ()))  # its arrays let go
+    if stage is not None:
+        finished = run_vehicle_stage(stage, [([m], call) for m, _, _, call in started])
     for (_, sel, unmeasured, _), (cols, _) in zip(started, finished):
         for name, values in cols.items():
             out[name][sel] = values[0]
