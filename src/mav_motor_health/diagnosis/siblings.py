@@ -9,9 +9,8 @@ error at an operating point the identification flight did not cover; the battery
 same for all. Friction (F1.1) or a lighter propeller (F3.1) moves one motor. So where the vehicle's
 noise has it, the torque is judged as ``r_T`` minus the median of the other motors' ``r_T``, against
 that difference's own healthy noise (``[noise.N] torque_vs_siblings_nm ...``, measured by
-identification like the torque's own, :mod:`.noise`). On the held-out worlds the largest healthy motor's
-median departure in a 60-s flight fell from 2.8 / 1.8 / 20 σ (calm / moderate / gusty) to 1.0 / 0.9 /
-1.8 σ, and a fault kept most of its signal (docs/flight.md, "The torque balance against its siblings").
+identification like the torque's own, :mod:`.noise`). What it gained and cost on the held-out worlds:
+docs/flight.md, "The torque balance against its siblings".
 
 The reference of a sample of motor m at time t is the median of the other motors' latest residuals that
 reached the core before it, in the order the live agent receives samples (time, then motor number: a
