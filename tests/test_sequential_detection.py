@@ -18,6 +18,7 @@ from mav_motor_health.diagnosis.detection import (
     average_run_length,
     design_threshold,
     direction_evidence,
+    named_evidence,
     report_credit,
     sequential_alarms,
 )
@@ -153,6 +154,34 @@ def test_a_lost_report_is_not_evidence() -> None:
     z[:, 153:155] = -12.0
     announced, _, _ = run_stream(rule, z[:, kept], t[kept], np.ones(kept.sum(), dtype=bool))
     assert (announced == MotorState.F4_1).any()
+
+
+def test_an_unjudged_samples_time_is_not_lent_to_the_judged_one_after_it() -> None:
+    """30-Hz reports; a sharp transient leaves three samples unjudged (0.1 s) and the two judged after it
+    still 12 σ slow in their low-pass: they stand for their own 1/30 s each, two ninths of an observation
+    at most, and are no alarm. Had they stood for the unjudged stretch's time too (as before), the first
+    alone would have counted a third of an observation and more. Deep samples that are all judged are
+    still named after one observation's worth of them, and the stretch's reports still count as reports
+    (a lost one's time is spread as before)."""
+    rule = SequentialRule(false_alarms_per_100h=1.0, reference_sigmas=2.5, min_observations=1.0)
+    rng = np.random.default_rng(25)
+    n = 600
+    t = np.arange(n) / 30.0
+    z = 0.5 * rng.standard_normal((2, n))
+    z[:, 300:305] = -12.0
+    judged = np.ones(n, dtype=bool)
+    judged[300:303] = False
+    announced, level, _ = run_stream(rule, z, t, judged)
+    assert not announced.any()
+    assert level[303] < level[304] < 0.25  # two samples of 1/30 s against an observation of 0.3 s
+    # the same five judged: half an observation's worth, no alarm; a departure that lasts is named once
+    # nine judged samples (0.3 s) have seen it, the three unjudged ones in it or not
+    announced, _, _ = run_stream(rule, z, t, np.ones(n, dtype=bool))
+    assert not announced.any()
+    z[:, 305:315] = -12.0
+    for mask, first in ((np.ones(n, dtype=bool), 308), (judged, 311)):
+        announced, _, _ = run_stream(rule, z, t, mask)
+        assert np.flatnonzero(announced == MotorState.F4_1)[0] == first
 
 
 def test_each_report_stands_for_its_streams_interval() -> None:
@@ -323,3 +352,40 @@ def test_the_floor_is_validated_and_written_back(tmp_path) -> None:
     assert load_profile(path) == profile
     with pytest.raises(ConfigError, match="min_observations"):
         SequentialRule(false_alarms_per_100h=1.0, min_observations=-1.0)
+
+
+def test_a_direction_gains_only_on_samples_the_tree_named_that_way() -> None:
+    """A healthy motor's model off by 3 σ in speed (slower), 10 s at 30 Hz, every sample inside the
+    bands (the tree reads NORMAL): the sum of sub-band departures just above the reference reaches h
+    in about 1.4 s without the tree's names, and never with them. A fault 5 σ deep named on every
+    other sample (straddling the band) is still announced within a second (0.7 s), later than one
+    named on every sample (0.4 s)."""
+    rule = SequentialRule(false_alarms_per_100h=1.0, reference_sigmas=2.5, min_observations=1.0)
+    rng = np.random.default_rng(26)
+    n = 3000
+    t = np.arange(n) / 30.0
+    z = 0.3 * rng.standard_normal((2, n))
+    z[0] -= 3.2  # slower than the model, the current as modelled: the F4.1 direction
+    evidence = direction_evidence(z[0], z[1], np.ones(n, dtype=bool), 4.5)
+    judged = np.ones(n, dtype=bool)
+
+    def alarms(ev: np.ndarray) -> np.ndarray:
+        announced, _, _ = sequential_alarms(
+            rule, t, ev, np.full(n, 2 * TAU_S), judged, SequentialCarry(), 0.5, TAU_S
+        )
+        return np.flatnonzero(announced == MotorState.F4_1)
+
+    assert alarms(evidence).size  # every sub-band sample adds: announced
+    normal = np.full(n, int(MotorState.NORMAL), dtype=np.int8)
+    assert alarms(named_evidence(evidence, normal, 2.5)).size == 0
+    # a fault 5 σ deep: named on every sample, or on every other one (the rest just inside the band)
+    z[0, 1500:] = -5.0
+    z[0, 1501::2] = -4.4
+    evidence = direction_evidence(z[0], z[1], np.ones(n, dtype=bool), 4.5)
+    every = normal.copy()
+    every[1500:] = MotorState.F4_1
+    other = normal.copy()
+    other[1500::2] = MotorState.F4_1
+    first_every = alarms(named_evidence(evidence, every, 2.5))[0]
+    first_other = alarms(named_evidence(evidence, other, 2.5))[0]
+    assert 1500 < first_every < first_other < 1500 + 30  # both within a second

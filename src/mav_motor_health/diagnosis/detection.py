@@ -22,12 +22,16 @@ two-half-normal model covers with room to spare.
 reference (``reference_sigmas``: departures below it are not evidence), ``τ_obs = 2·τ`` with ``τ`` the
 deviations' low-pass time constant at the sample (a low-passed signal gives one independent observation
 per 2τ, so S counts observations, not samples). ``Δt`` is the time the sample stands for: each report
-of the motor's stream counts its stream's mean interval (:func:`report_credit`), and a judged sample
-the reports since the last judged one. Over a stream that loses no report that is the time since the
-last judged sample; a lost report's time is spread over the next eight instead of counted whole for the
-one after it (a departure seen once after a lost report was observed once, not twice), and reports that
-arrive in bursts each count the stream's interval, not the burst's. The direction is announced when S
-reaches ``h`` and stays announced until S has fallen back to 0.
+of the motor's stream counts its stream's mean interval (:func:`report_credit`). A lost report's time is
+spread over the next eight instead of counted whole for the one after it (a departure seen once after a
+lost report was observed once, not twice), reports that arrive in bursts each count the stream's
+interval, not the burst's, and a sample that is not judged counts for nothing: its time is not lent to
+the judged sample after it. Samples go unjudged where the model cannot be trusted (a step, a busier
+input or a looser pairing than identification saw), and the first judged sample after such a stretch
+still holds it in its low-pass; counted for the whole stretch, one such sample after a sharp command
+dip between two ESC reports was a third of an observation's evidence or more on its own (on the
+held-out worlds, two of the eight false events in ten healthy hours, docs/flight.md). The direction is
+announced when S reaches ``h`` and stays announced until S has fallen back to 0.
 
 **Threshold.** Under no fault ``z_ω`` and ``z_i`` are taken as independent standard normal (σ is measured
 on the tail of the healthy flight, which makes that hold where it matters), so each direction's evidence
@@ -41,6 +45,17 @@ hexacopter, and in gusts, where the low-pass lengthens, there are fewer observat
 time to detect a departure of δ σ is then about ``h/(δ − k)`` observations: a deep fault is announced in
 a fraction of τ, a shallow one after seconds. The rate is a design figure under that noise model; what a
 vehicle really gives is measured by ``benchmarks/bench_flight_worlds.py``.
+
+**Named by the tree.** The paper's tree (and the rules after it: the torque balance, the judged range)
+names each sample's direction; the test only says when it has lasted. A direction gains on the samples
+named that way, and on any other its evidence counts at most the reference ``k``
+(:func:`named_evidence`, applied by the rule): no gain there, and no more loss than the sample's own
+departure gives. Without it, a healthy motor whose model is off by 3 σ where the identification flight
+never took it (a motor taking over a failed one's share, a motor 8 % below its identified speeds) read
+NORMAL on every sample and was still announced after a few seconds, as the sum of many sub-band
+departures just above ``k``. Under no fault the sums can only be lower than without it, so the designed
+rate still bounds the false alarms; a fault departs beyond the bands (4.5 σ) and is named, so its sum
+grows as before, at about half the pace where its samples straddle the band.
 
 **Outliers.** The threshold is designed under Gaussian noise, where a sample 10 σ off never happens;
 telemetry has heavier tails (a command that dipped between two logged commands, at a manoeuvre's start,
@@ -83,6 +98,7 @@ __all__ = [
     "design_threshold",
     "direction_evidence",
     "equation_evidence",
+    "named_evidence",
     "report_credit",
     "sequential_alarms",
 ]
@@ -174,15 +190,24 @@ CREDIT_INTERVALS = 8
 @dataclass(frozen=True)
 class SequentialCarry:
     """Each direction's CUSUM, whether it is announced, and the last judged sample's time; the motor's
-    report stream: its last report's time, its last intervals, and the time its reports since the last
-    judged sample stand for (:func:`report_credit`)."""
+    report stream: its last report's time and its last intervals (:func:`report_credit`)."""
 
     sums: tuple[float, ...] = (0.0,) * len(DIRECTIONS)
     alarmed: tuple[bool, ...] = (False,) * len(DIRECTIONS)
     last_s: float = -math.inf
     stream_s: float = -math.inf
     intervals: tuple[float, ...] = (math.inf,) * CREDIT_INTERVALS
-    credit_s: float = 0.0
+
+
+def named_evidence(
+    evidence: NDArray[np.float64], state: NDArray[np.integer], reference_sigmas: float
+) -> NDArray[np.float64]:
+    """Each direction's evidence (directions first, then the samples' shape) where the sample's state is
+    that direction's (the tree named it), and at most ``reference_sigmas`` elsewhere (module doc,
+    "Named by the tree"): no sample the tree calls something else adds to a direction's sum."""
+    codes = np.array([int(d) for d in DIRECTIONS]).reshape((-1,) + (1,) * np.ndim(state))
+    named = np.asarray(state)[None] == codes
+    return np.where(named, evidence, np.minimum(evidence, reference_sigmas))
 
 
 def report_credit(
@@ -316,7 +341,7 @@ def sequential_alarms(
     independent observation at each sample (2τ); only ``judged`` samples add to the sums, and two judged
     samples more than ``max_gap_s`` apart start them afresh (the evidence before the gap is stale);
     ``tau_s`` the deviations' shortest low-pass, which the threshold is designed for. Each judged sample
-    weighs the reports since the judged one before (:func:`report_credit`). The sums are exact Lindley
+    weighs its own report's time (:func:`report_credit`; an unjudged one's is not lent to it). The sums are exact Lindley
     recursions, evaluated in closed form (S_n = W_n − min(−S_0, min_j W_j) over each stretch without a
     gap), so any split of the samples into calls gives the same result (up to rounding, which the
     comparison with h allows for: :data:`_H_ROUNDING`)."""
@@ -333,10 +358,8 @@ def sequential_alarms(
     sums = np.array(carry.sums, dtype=float)
     alarmed = np.array(carry.alarmed, dtype=bool)
     last_s = carry.last_s
-    # the time the reports stand for, summed from the last judged sample (carried) on
+    # the time each report stands for (an unjudged one's counts for nothing)
     credit, intervals = report_credit(t, carry, max_gap_s)
-    credit_sum = carry.credit_s + np.cumsum(credit)
-    credit_s = float(credit_sum[-1] - (credit_sum[idx[-1]] if idx.size else 0.0))
     # the state at each sample: that of the last judged sample at or before it (the carry's before any)
     s_at = np.tile(sums[:, None], (1, n))
     a_at = np.tile(alarmed[:, None], (1, n))
@@ -344,8 +367,8 @@ def sequential_alarms(
         tj = t[idx]
         dt = np.diff(tj, prepend=last_s)
         fresh = ~(dt <= max_gap_s)  # a gap (or the first sample ever): the sums start afresh
-        # each judged sample stands for the reports since the one before (:func:`report_credit`)
-        dt = np.where(fresh, 0.0, np.diff(credit_sum[idx], prepend=0.0))
+        # each judged sample stands for its own report (:func:`report_credit`)
+        dt = np.where(fresh, 0.0, credit[idx])
         steps = (np.minimum(evidence[:, idx], rule.evidence_caps(h)) - k) * (
             dt / np.asarray(observation_s, dtype=float)[idx]
         )
@@ -385,7 +408,6 @@ def sequential_alarms(
         last_s=last_s,
         stream_s=float(t[-1]),
         intervals=intervals,
-        credit_s=credit_s,
     )
     return announced, level, new
 

@@ -14,6 +14,7 @@ from ..detection import (
     SequentialCarry,
     direction_evidence,
     equation_evidence,
+    named_evidence,
     sequential_alarms,
 )
 from ..persistence import PersistenceCarry, announce
@@ -66,6 +67,10 @@ class Sequential(Rule):
         if frame.z_torque is not None:
             # friction and a lighter propeller in the torque balance, where it is judged (rules/equations.py)
             evidence = equation_evidence(frame.z_torque, frame.current_trusted(), evidence)
+        # the tree names the fault, the test says when it has lasted: a direction gains only on samples
+        # the tree (and the rules after it) named that way; elsewhere its evidence counts at most the
+        # reference (no gain, and no more loss than the sample's own departure gives)
+        evidence = named_evidence(evidence, frame.state, profile.detection.reference_sigmas)
         # judged: the steady samples the tree named a motor state on (not a stall, a bad sensor, no data)
         judged = frame.steady & ~one_of(frame.state, _NOT_DIRECTIONS)
         observation_s = 2.0 * frame.low_pass_s
