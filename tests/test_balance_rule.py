@@ -326,6 +326,38 @@ def test_activity_counts_sparser_telemetry_as_more_active(motor) -> None:
     assert res.activity_v[-1] == pytest.approx(1.0, rel=0.02)
 
 
+def test_a_command_that_dips_between_two_samples_is_as_active_as_one_that_zigzags(motor) -> None:
+    """Both samples' inputs alike, the command having dipped by e in between (a 10 Hz ESC report in 50 Hz
+    commands, telemetry/assemble.py ``input_excursion_v``): the activity is that of a zigzag of e per
+    sample, not the nothing the two inputs show."""
+    t = np.arange(0.0, 20.0, 0.04)
+    w = steady_state(motor, np.full(t.size, 7.0)).omega_rad_s
+    i = np.full(t.size, 5.0)
+    zigzag, _ = balance_deviations(motor, t, 7.0 + 0.5 * (-1.0) ** np.arange(t.size), w, i, 0.15, 0.5)
+    flat, _ = balance_deviations(motor, t, np.full(t.size, 7.0), w, i, 0.15, 0.5)
+    dips, _ = balance_deviations(
+        motor, t, np.full(t.size, 7.0), w, i, 0.15, 0.5, input_excursion_v=np.full(t.size, 1.0)
+    )
+    assert flat.activity_v[-1] == 0.0
+    assert dips.activity_v[-1] == pytest.approx(zigzag.activity_v[-1], rel=1e-6)
+    # a zigzag larger than the excursions is the zigzag's; NaN (no sample) is no excursion
+    larger, _ = balance_deviations(
+        motor,
+        t,
+        7.0 + 0.5 * (-1.0) ** np.arange(t.size),
+        w,
+        i,
+        0.15,
+        0.5,
+        input_excursion_v=np.full(t.size, 0.3),
+    )
+    assert larger.activity_v[-1] == pytest.approx(zigzag.activity_v[-1], rel=1e-9)
+    missing, _ = balance_deviations(
+        motor, t, np.full(t.size, 7.0), w, i, 0.15, 0.5, input_excursion_v=np.full(t.size, np.nan)
+    )
+    assert missing.activity_v[-1] == 0.0
+
+
 def test_warm_mask_restarts_after_idle() -> None:
     t = np.arange(12) * 0.1
     v = np.full(12, 6.0)

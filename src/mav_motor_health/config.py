@@ -253,6 +253,7 @@ _STEADY_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "residual_tau_max_s": (0.0, 10.0, "s"),
     "slow_factor": (0.0, 100.0, ""),
     "bus_ref_v": (0.0, None, "V"),
+    "excursion_weight": (0.0, 1.0, ""),
 }
 
 

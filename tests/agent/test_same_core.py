@@ -233,7 +233,7 @@ def test_a_simulated_tlog_streamed_through_the_agent_gives_replays_samples(paper
                 [r[name] for r in live], batch[name][sel], err_msg=f"motor {motor}: {name}"
             )
         # the low-passes in batches or whole differ in the last bits only
-        for name in ("omega_model_rad_s", "pairing_error_rad_s"):
+        for name in ("omega_model_rad_s", "pairing_error_rad_s", "input_activity_v"):
             np.testing.assert_allclose(
                 [r[name] for r in live],
                 batch[name][sel],
@@ -252,3 +252,54 @@ def test_a_simulated_tlog_streamed_through_the_agent_gives_replays_samples(paper
     published = [(c.motor, c.time_s, c.state) for c in agent.changes if c.state != MotorState.NO_DATA]
     assert sorted(published) == sorted(expected)
     assert (batch["announced"] == MotorState.F4_1).any()  # not vacuous: the fault is announced
+
+
+def test_commands_between_two_esc_reports_count_alike_live_and_in_replay(paper_motor, tmp_path):
+    """A world whose ESCs report at 10 Hz and whose commands are logged at 50 Hz (world 2): the commands
+    between two reports go beyond the two held ones (``input_excursion_v``, telemetry/assemble.py), and
+    with ``steady.excursion_weight`` (an option, off in the shipped profiles) the balance rule's input
+    activity takes them in. The agent, reading the .tlog in batches, carries the commands from one batch
+    to the next sample: the same activity, the same diagnosis as replay."""
+    import dataclasses
+
+    from mav_motor_health.config import dump_profile, load_profile
+    from mav_motor_health.evaluation.worlds import fly_world
+    from mav_motor_health.sim.worlds import draw_world
+    from mav_motor_health.sim.writers import write_record
+    from mav_motor_health.telemetry import sources
+
+    world = draw_world(2)
+    assert (world.esc_stream_hz, world.log_hz) == (10.0, 50.0)
+    path, _ = write_record(fly_world(2, duration_s=20.0, turbulence="moderate"), tmp_path / "world2.tlog")
+    table = sources.read(path)
+    fresh = np.isfinite(table["omega_rad_s"])  # replay keeps an ESC's repeated reports as rows without data
+    assert (table["input_excursion_v"][fresh] > 0.05).mean() > 0.2  # not vacuous: commands moved
+    shipped = load_profile("flight")
+    assert shipped.steady.excursion_weight == 0.0
+    profile = dataclasses.replace(shipped, steady=dataclasses.replace(shipped.steady, excursion_weight=1.0))
+    profile_file = tmp_path / "with_excursions.toml"
+    profile_file.write_text(dump_profile(profile), encoding="utf-8")
+    assert load_profile(profile_file).steady.excursion_weight == 1.0
+    batch = diagnose(table, paper_motor, profile)
+    rows, _ = stream_through_agent(path, str(profile_file))
+    assert len(rows) == fresh.sum()
+    for motor in range(1, 7):
+        live = [r for r in rows if r["motor"] == motor]
+        sel = (batch["motor"] == motor) & fresh
+        for name in ("time_s", "state", "announced", "steady", "sensor_flags"):
+            np.testing.assert_array_equal(
+                [r[name] for r in live], batch[name][sel], err_msg=f"{motor} {name}"
+            )
+        for name in ("input_activity_v", "omega_model_rad_s"):
+            np.testing.assert_allclose(
+                [r[name] for r in live], batch[name][sel], rtol=1e-9, atol=1e-12, err_msg=f"{motor} {name}"
+            )
+    # the shipped profile leaves the excursions out: its activity is the same as with none; with the
+    # option it is higher where the commands moved between reports
+    off = diagnose(table, paper_motor, shipped)
+    none = diagnose(table.with_columns(input_excursion_v=np.zeros(len(table))), paper_motor, profile)
+    judged = np.isfinite(batch["input_activity_v"])
+    np.testing.assert_array_equal(off["input_activity_v"], none["input_activity_v"])
+    assert (batch["input_activity_v"][judged] >= none["input_activity_v"][judged] - 1e-12).all()
+    ratio = batch["input_activity_v"][judged] / np.fmax(none["input_activity_v"][judged], 1e-9)
+    assert np.median(ratio) > 1.05

@@ -44,6 +44,7 @@ LIVE_COLUMNS = (
     "battery_voltage_v",
     "battery_current_a",
     "pairing_s",  # each sample's pairing with its command (telemetry/assemble.py)
+    "input_excursion_v",  # how far the command went between two samples (telemetry/assemble.py)
 )
 
 V2 = mav2.MAVLink(None, srcSystem=1, srcComponent=1)
@@ -268,6 +269,17 @@ def test_a_parameter_change_and_a_silent_esc_read_alike_both_ways(tmp_path: Path
     assert silent.sum() == 60 and np.isnan(table.for_motor(3)["omega_rad_s"][silent]).all()
     m3 = live["time_s"][live["motor"] == 3]
     assert not ((m3 >= 1.0 + 100 * TICK_US / 1e6) & (m3 < 1.0 + 160 * TICK_US / 1e6)).any()
+    # its command swung on during the silence: the first sample after it carries how far beyond the two
+    # held commands (times the bus voltage), every sample of a command message's own tick none
+    for rows in (table.for_motor(3).columns, {k: v[live["motor"] == 3] for k, v in live.items()}):
+        fresh = np.isfinite(rows["omega_rad_s"])
+        k = np.round((rows["time_s"][fresh] - 1.0) * 1e6 / TICK_US).astype(int)
+        excursion = rows["input_excursion_v"][fresh]
+        pwm = 1300 + 40 * 2 + (80 * np.sin(0.05 * np.arange(300) + 2)).astype(int)
+        swing = (pwm[100:161].max() - max(pwm[99], pwm[160])) / 1000  # throttle: (pwm - 1000) / 1000
+        bus = rows["bus_voltage_v"][fresh][k == 160]
+        np.testing.assert_allclose(excursion[k == 160], swing * bus)
+        assert swing > 0.02 and (excursion[(k != 160) & (k > 0)] == 0).all()
     # the narrower PWM range from 4 s on: throttle = (pwm - 1000) / 900
     m6 = table.for_motor(6)
     late = m6["time_s"] >= 1.0 + 200 * TICK_US / 1e6

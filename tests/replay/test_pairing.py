@@ -198,3 +198,53 @@ def test_the_guards_window_is_the_oldest_command_a_source_pairs() -> None:
     from mav_motor_health.telemetry.assemble import COMMAND_MAX_AGE_S
 
     assert PAIRING_WINDOW_S == COMMAND_MAX_AGE_S
+
+
+def excursions_brute_force(t: np.ndarray, v: np.ndarray, samples: np.ndarray) -> np.ndarray:
+    """Per sample: how far the values since the sample before (times in (previous, this]) went beyond the
+    values held at the two samples (the last value at or before each), 0 where they did not."""
+    given = np.isfinite(v)
+    t, v = t[given], v[given]
+    out = np.zeros(samples.size)
+    for k, s in enumerate(samples):
+        if k == 0:
+            continue
+        prev = samples[k - 1]
+        between = v[(t > prev) & (t <= s)]
+        before, now = v[t <= prev], v[t <= s]
+        if between.size == 0 or before.size == 0:
+            continue
+        lo, hi = sorted((before[-1], now[-1]))
+        out[k] = max(between.max() - hi, lo - between.min(), 0.0)
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_command_excursions_whole_and_in_parts_are_the_brute_force(seed: int) -> None:
+    """``CommandExcursions``: how far a motor's commands between two of its samples went beyond the two held
+    commands (a dip and back between two ESC reports). Whole, it is the brute force's (a value at a sample's
+    very time counts for that sample); parts cut anywhere but at a value's very time give the same."""
+    from mav_motor_health.telemetry.assemble import CommandExcursions
+
+    rng = np.random.default_rng(200 + seed)
+    t = np.cumsum(rng.choice([0.0, 0.02, 0.05], size=300, p=[0.1, 0.6, 0.3]))
+    v = rng.normal(size=t.size)
+    v[rng.random(t.size) < 0.1] = np.nan
+    samples = np.unique(np.concatenate([rng.uniform(-0.5, t[-1] + 0.5, 80), rng.choice(t, 10)]))
+    expected = excursions_brute_force(t, v, samples)
+    whole = CommandExcursions(2).beyond_held(1, t, v, samples)
+    np.testing.assert_allclose(whole, expected, rtol=0, atol=1e-15)
+    assert (whole > 0).sum() > 20 and (whole == 0).sum() > 5  # dips and none both present
+    times = np.unique(np.concatenate([t, samples]))
+    free = times[~np.isin(times, t)]  # cut where no value is stamped (a sample's time, or none)
+    for cuts in (rng.choice(free, 1), np.sort(rng.choice(free, 15, replace=False)), free):
+        parts = CommandExcursions(2)
+        got = []
+        for lo, hi in zip([-np.inf, *cuts], [*cuts, np.inf]):
+            vals = (t > lo) & (t <= hi)
+            sam = (samples > lo) & (samples <= hi)
+            got.append(parts.beyond_held(1, t[vals], v[vals], samples[sam]))
+        np.testing.assert_allclose(np.concatenate(got), expected, rtol=0, atol=1e-15)
+    # a dip between two samples whose held commands are alike: the dip's depth
+    dip = CommandExcursions(1).beyond_held(0, [0.0, 0.02, 0.04, 0.06], [0.5, 0.3, 0.4, 0.5], [0.01, 0.09])
+    np.testing.assert_allclose(dip, [0.0, 0.2])

@@ -54,7 +54,11 @@ _CORE_INPUTS = {
     "command": "throttle",
     "sensor_current_a": "esc_current_a",
     "pairing_s": "pairing_s",
+    "input_excursion_v": "input_excursion_v",
 }
+#: Columns a source may leave out (the core then takes the sample as paired with the command of its own
+#: instant, which did not move between samples)
+_OPTIONAL = ("pairing_s", "input_excursion_v")
 #: Those a result row repeats from the sample (before the core's columns).
 _ROW_COLUMNS = (
     "time_s",
@@ -143,7 +147,7 @@ class HealthMonitor:
         cols = {
             name: np.asarray(columns[name], dtype=float)
             for name in _SAMPLE_COLUMNS
-            if name != "motor" and (name in columns or name != "pairing_s")
+            if name != "motor" and (name in columns or name not in _OPTIONAL)
         }
         # each sample's pairing with its command, which the balance rule weighs (None: of its own instant)
         pairing = cols.get("pairing_s")
@@ -174,7 +178,8 @@ class HealthMonitor:
         place = np.empty(motor.size, dtype=np.intp)
         place[by_motor] = np.arange(motor.size) - np.repeat(ends - counts, counts)
         groups = {number: by_motor[end - count : end] for number, count, end in zip(motors, counts, ends)}
-        calibrated = calibrate_columns({name: cols[name] for name in _CORE_COLUMNS}, self.esc, self.current)
+        given = [name for name in (*_CORE_COLUMNS, "input_excursion_v") if name in cols]
+        calibrated = calibrate_columns({name: cols[name] for name in given}, self.esc, self.current)
         if self.diagnoser.together(motors):
             # every motor's samples laid out as the core's rows at once (one scatter per column), one core
             # call, the results gathered back in the samples' order: the same as a batch per motor
@@ -189,8 +194,8 @@ class HealthMonitor:
                 return out
 
             inputs = {
-                name: laid_out(calibrated.get(given) if given != "pairing_s" else pairing)
-                for name, given in _CORE_INPUTS.items()
+                name: laid_out(calibrated.get(column) if column != "pairing_s" else pairing)
+                for name, column in _CORE_INPUTS.items()
             }
             inputs["extra_flags"] = laid_out(sum_flags, 0)
             laid = self.diagnoser.update_rows(motors, inputs, counts.tolist())
@@ -209,6 +214,9 @@ class HealthMonitor:
                     sensor_current_a=arrays["esc_current_a"],
                     extra_flags=sum_flags[index],
                     pairing_s=None if pairing is None else pairing[index],
+                    input_excursion_v=(
+                        calibrated["input_excursion_v"][index] if "input_excursion_v" in calibrated else None
+                    ),
                     context=arrays,  # what a model with fitted effects may read (temperatures, throttle...)
                 )
             # every motor's samples in one core call where they share a model (the same results as motor

@@ -50,6 +50,9 @@ class MotorSample:
     #: same name: its command's age or the interval of the motor's ESC messages, the larger); 0: the
     #: command of the sample's own instant, as the simulator pairs them
     pairing_s: float = 0.0
+    #: how far the motor's command went beyond the two held commands since its sample before [V]
+    #: (telemetry/assemble.py, replay's column of the same name); 0: not at all, or not known
+    input_excursion_v: float = 0.0
 
     def row(self) -> dict[str, float]:
         """The sample as a table row (column name → value)."""
@@ -65,6 +68,7 @@ class MotorSample:
             "esc_temp_c": self.esc_temp_c,
             "battery_current_a": self.battery_current_a,
             "pairing_s": self.pairing_s,
+            "input_excursion_v": self.input_excursion_v,
         }
 
 

@@ -99,6 +99,9 @@ class MotorBatch:
     context: Mapping[str, NDArray[np.float64]] | None = None
     #: each sample's pairing with its command [s] (the table's ``pairing_s``; None: of its own instant)
     pairing_s: NDArray[np.float64] | None = None
+    #: how far each sample's input went beyond the two held inputs since the sample before [V] (the
+    #: table's ``input_excursion_v``; None: not at all, the command of each sample's own instant)
+    input_excursion_v: NDArray[np.float64] | None = None
 
 
 #: :class:`MotorBatch`'s float columns that :meth:`StreamingDiagnoser.update_rows` takes as rows
@@ -111,6 +114,7 @@ _ROW_INPUTS = (
     "command",
     "sensor_current_a",
     "pairing_s",
+    "input_excursion_v",
 )
 
 #: a source's pairing of samples with commands [s]: one number for all samples, or one per sample
@@ -132,6 +136,7 @@ def diagnose_motor(
     extra_flags: NDArray[np.int16] | None = None,
     context: Mapping[str, NDArray[np.float64]] | None = None,
     pairing_s: Pairing = None,
+    input_excursion_v: NDArray[np.float64] | None = None,
     noise: BandNoise | None = None,
 ) -> tuple[dict[str, NDArray], MotorCarry]:
     """Diagnose one motor's samples (increasing time); returns result columns and the new carry.
@@ -144,7 +149,10 @@ def diagnose_motor(
     base equations (a fitted effect's extra terms are not yet part of its balances). ``pairing_s`` is how
     far apart the source may have paired each sample and its command [s], which the balance rule weighs
     (:mod:`.pairing`): one value per sample (a log table's ``pairing_s`` column, the live agent's samples'),
-    or one number for all (None or 0: the command of the sample's own instant). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
+    or one number for all (None or 0: the command of the sample's own instant). ``input_excursion_v``
+    how far each sample's input went beyond the two held inputs since the sample before [V] (a log
+    table's column of that name, telemetry/assemble.py), which the balance rule counts as input activity
+    (None: not at all). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
     bands from (:mod:`.noise`). A motor alone has no siblings (:mod:`.siblings`): :func:`start_motor`
     and :meth:`StartedCall.finish` with the vehicle stage between them judge the torque against them.
     """
@@ -162,6 +170,7 @@ def diagnose_motor(
         extra_flags=extra_flags,
         context=context,
         pairing_s=pairing_s,
+        input_excursion_v=input_excursion_v,
         noise=noise,
     ).finish()
     return {name: values[0] for name, values in cols.items()}, new
@@ -182,6 +191,7 @@ def start_motor(
     extra_flags: NDArray[np.int16] | None = None,
     context: Mapping[str, NDArray[np.float64]] | None = None,
     pairing_s: Pairing = None,
+    input_excursion_v: NDArray[np.float64] | None = None,
     noise: BandNoise | None = None,
 ) -> StartedCall:
     """:func:`diagnose_motor` (the same arguments) run up to the vehicle stage: a call of one row."""
@@ -203,6 +213,7 @@ def start_motor(
         extra_flags=row(extra_flags, np.int16),
         context=None if context is None else {k: np.asarray(v).reshape(1, -1) for k, v in context.items()},
         pairing_s=pairing_s if pairing_s is None or np.ndim(pairing_s) == 0 else row(np.asarray(pairing_s)),
+        input_excursion_v=row(input_excursion_v),
         noise=None if noise is None else [noise],
     )
 
@@ -272,6 +283,7 @@ def diagnose_motors(
     extra_flags: NDArray[np.int16] | None = None,
     context: Mapping[str, NDArray[np.float64]] | None = None,
     pairing_s: Pairing = None,
+    input_excursion_v: NDArray[np.float64] | None = None,
     noise: Sequence[BandNoise] | None = None,
 ) -> tuple[dict[str, NDArray], list[MotorCarry]]:
     """:func:`diagnose_motor` for several motors of one model at once: one row of samples per motor.
@@ -302,6 +314,7 @@ def diagnose_motors(
         extra_flags=extra_flags,
         context=context,
         pairing_s=pairing_s,
+        input_excursion_v=input_excursion_v,
         noise=noise,
     ).finish()
 
@@ -357,6 +370,7 @@ def start_motors(
     extra_flags: NDArray[np.int16] | None = None,
     context: Mapping[str, NDArray[np.float64]] | None = None,
     pairing_s: Pairing = None,
+    input_excursion_v: NDArray[np.float64] | None = None,
     noise: Sequence[BandNoise] | None = None,
 ) -> StartedCall:
     """:func:`diagnose_motors` (the same arguments) run up to the vehicle stage (:class:`StartedCall`)."""
@@ -387,6 +401,7 @@ def start_motors(
         pairing_s=pairing_s
         if pairing_s is None or np.ndim(pairing_s) == 0
         else floats(np.asarray(pairing_s)),
+        input_excursion_v=floats(input_excursion_v),
         noise=noise,
     )
     rules = profile.rules
@@ -567,6 +582,8 @@ def diagnose(
     # the column: the meta's one number where a source gives one, else none (the command of the instant)
     pairing_column = ordered.get("pairing_s")
     pairing = table.meta.get("pairing_s")
+    # how far each sample's input went between it and the sample before (a log's column; none: not at all)
+    excursion_column = ordered.get("input_excursion_v")
 
     def part(values: NDArray | None, sel: NDArray | slice) -> NDArray | None:
         return None if values is None else values[sel].copy()
@@ -620,6 +637,7 @@ def diagnose(
                 if pairing_column is not None
                 else (None if pairing is None else float(pairing))
             ),
+            input_excursion_v=part(excursion_column, sel),
             noise=None if noise is None else noise.get(int(motor)),
         )
         started.append((int(motor), sel, unmeasured, call))
@@ -857,7 +875,14 @@ class StreamingDiagnoser:
                 continue
             given = tuple(
                 getattr(batch, name) is not None
-                for name in ("bus_voltage_v", "command", "sensor_current_a", "extra_flags", "pairing_s")
+                for name in (
+                    "bus_voltage_v",
+                    "command",
+                    "sensor_current_a",
+                    "extra_flags",
+                    "pairing_s",
+                    "input_excursion_v",
+                )
             )
             groups.setdefault((id(motor_params), given), []).append(motor)
         calls: list[tuple[list[int], StartedCall]] = []
@@ -901,6 +926,7 @@ class StreamingDiagnoser:
             extra_flags=b.extra_flags,
             context=b.context,
             pairing_s=pairing_s,
+            input_excursion_v=arr(b.input_excursion_v),
             noise=self._noise_of([motor])[0] if self.profile.noise_bands > 0 else None,
         )
 
@@ -978,6 +1004,7 @@ class StreamingDiagnoser:
             sensor_current_a=columns.get("sensor_current_a"),
             extra_flags=columns.get("extra_flags"),
             pairing_s=pairing if pairing is not None else pairing_s,
+            input_excursion_v=columns.get("input_excursion_v"),
             noise=self._noise_of(list(motors)) if self.profile.noise_bands > 0 else None,
         )
 

@@ -58,7 +58,10 @@ reports single unaveraged samples reads many more.)
 
 The *input activity* (:func:`input_activity`) measures how much the input zigzags between samples: the
 balances' noise grows with it (a command that moves between samples leaves the sensed current behind),
-so the flight rule averages longer and the flight profile widens its bands with it. The balance rule
+so the flight rule averages longer and the flight profile widens its bands with it. Where the source says
+how far the input went beyond the two samples' inputs in between (``input_excursion_v``, a command that
+dipped and came back between two ESC reports, telemetry/assemble.py), that excursion ``e`` is a zigzag of
+``e²`` (down ``e`` and up again), whichever is larger. The balance rule
 scales it by √(sample interval / 40 ms): the noise of an average grows as √(interval) for the same
 averaging time, so an ESC that reports at 10 Hz counts as more active than one at 50 Hz with the same
 input.
@@ -284,6 +287,7 @@ def balance_deviations(
     tau_max_s: float = 2.0,
     input_current_a: ArrayLike | None = None,
     duty: ArrayLike | None = None,
+    input_excursion_v: ArrayLike | None = None,
 ) -> tuple[BalanceResult, BalanceCarry]:
     """Low-passed balances and the steady-state deviations they imply (see the module doc).
 
@@ -293,7 +297,8 @@ def balance_deviations(
 
     ``current_a`` is the motor current. Given ``input_current_a`` (the ESC's reading of its input current)
     and ``duty`` (the command, 0..1), the electrical balance uses those, weighted by the duty (see the
-    module doc), and ``current_a`` only says where a current is known.
+    module doc), and ``current_a`` only says where a current is known. ``input_excursion_v``: how far the
+    input went beyond the two samples' inputs in between (module doc, "input activity"; None: not at all).
 
     NaN speed or current (a lost sample, a missing sensor) hold the low-passes; Δi is NaN where the
     current is NaN, Δω needs only voltage and speed.
@@ -319,6 +324,7 @@ def balance_deviations(
         tau_max_s=tau_max_s,
         input_current_a=row(input_current_a),
         duty=row(duty),
+        input_excursion_v=row(input_excursion_v),
     )
     return BalanceResult(*(np.asarray(getattr(result, f))[0] for f in _RESULT_FIELDS)), new
 
@@ -367,10 +373,13 @@ def balance_deviations_rows(
     tau_max_s: float = 2.0,
     input_current_a: FloatArray | None = None,
     duty: FloatArray | None = None,
+    input_excursion_v: FloatArray | None = None,
 ) -> tuple[BalanceResult, list[BalanceCarry]]:
     """:func:`balance_deviations` of several motors of one model at once: rows of samples (2-D), one
     carry per row; ``lengths`` each row's number of samples (None: all; the rest is padding after them).
-    The nine low-passes of each row run in one call."""
+    The nine low-passes of each row run in one call. ``input_excursion_v``: how far each sample's input
+    went beyond the two held inputs since the sample before (module doc, "input activity"; None: not
+    at all)."""
     t, v, w, i = time_s, voltage_v, omega_rad_s, current_a
     rows, n = t.shape
     counts = [n] * rows if lengths is None else lengths
@@ -382,6 +391,11 @@ def balance_deviations_rows(
     # the input activity's two low-passes (input_activity_rows) and the interval's in one call
     activity_carries = [c.activity for c in carries]
     zigzag_in, dv = _zigzag_rows(v, activity_carries)
+    if input_excursion_v is not None:
+        # an input that went and came back between two samples zigzagged by its excursion e (down e and
+        # up e: −ΔV_n·ΔV_(n−1) = e²), though both samples' inputs are alike
+        excursion = np.asarray(input_excursion_v, dtype=float)
+        zigzag_in = np.fmax(zigzag_in, np.where(np.isfinite(excursion), excursion * excursion, 0.0))
     low_passed, low_pass_carries = first_order_responses(
         t,
         np.concatenate([zigzag_in, zigzag_in, gaps]),

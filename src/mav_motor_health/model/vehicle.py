@@ -123,6 +123,9 @@ def calibrate_columns(
     out["command"] = command
     out["throttle"] = duty
     out["voltage_v"] = duty * np.asarray(bus, dtype=float)
+    excursion = columns.get("input_excursion_v")
+    if excursion is not None:  # in the command's volts: in the duty's, the map's slope times that
+        out["input_excursion_v"] = np.asarray(excursion, dtype=float) / (1.0 - esc.idle_offset)
     reading = columns.get("esc_current_a")
     if reading is None or current is None:
         return out

@@ -46,6 +46,16 @@ a command sent just before it is well paired whatever the others are. A source t
 with the command of its own instant (the simulator's table, a CSV with both) has no such column: the
 balance rule's pairing guard (:mod:`..diagnosis.pairing`) then does nothing.
 
+How far each sample's command went between it and the motor's sample before is the column
+``input_excursion_v`` [V] (:class:`CommandExcursions`): the farthest the motor's commands since the sample
+before went beyond the two held commands (the one held at that sample and at this one), times the bus
+voltage. A command that dips and comes back between two ESC reports (10 Hz telemetry in 50 Hz command
+messages) leaves both held commands alike, so the change from one sample to the next says nothing of
+it, while the motor's current and speed followed the dip and a low-pass still holds it; the balance rule
+takes the excursion into its input activity as the zigzag it is (model/balance.py). It is 0 where the
+command went no farther than the two held ones (a command of the sample's own instant: a simulator's
+table, a CSV, a .bin whose ESC samples come with each command), NaN on rows without a measurement.
+
 The table's ``meta`` keeps a whole-log summary for the readers' warnings and the report
 (``command_age_s``, the held command's age, 95th percentile; ``pairing_s``, the larger of that and the
 reader's ``sample_time_uncertainty_s``); the diagnosis uses the column.
@@ -69,11 +79,13 @@ __all__ = [
     "COMMAND_MAX_AGE_S",
     "CONTEXT_MAX_AGE_S",
     "INTERVAL_WINDOW_S",
+    "CommandExcursions",
     "EscSamples",
     "HeldValues",
     "MessageIntervals",
     "Series",
     "bus_voltage_or_battery",
+    "excursion_v",
     "held",
     "motor_table",
     "no_esc_error",
@@ -288,6 +300,68 @@ class MessageIntervals:
         return out
 
 
+class CommandExcursions:
+    """Per sample of a signal (a motor), how far the signal's values (its commands) since the signal's
+    sample before went beyond the two held values, the one held at that sample and the one held at this
+    one (module doc, ``input_excursion_v``), in the values' units; 0 where they did not (or no value was
+    held at the sample before). Values and samples come in parts (a log: all at once; the live agent:
+    batch by batch); what earlier parts left (the value held at the last sample, the values since) is
+    carried, so parts whose times do not go back give what the whole gives, except that a value stamped
+    at a sample's very time but coming in a later part counts for the next sample (as
+    :class:`HeldValues`, it had not come)."""
+
+    def __init__(self, signals: int) -> None:
+        #: each signal's value held at its last sample (NaN: none yet)
+        self.held = np.full(signals, np.nan)
+        #: each signal's values since its last sample, as (lowest, highest, last); empty: none
+        self.pending: list[NDArray[np.float64]] = [np.zeros(0) for _ in range(signals)]
+
+    def beyond_held(
+        self, signal: int, value_time_s: ArrayLike, values: ArrayLike, sample_time_s: ArrayLike
+    ) -> NDArray[np.float64]:
+        """The excursion at each sample of ``signal`` (0-based; samples in increasing time), from the
+        signal's values (NaN: none in that message) with their times (increasing)."""
+        vt = np.asarray(value_time_s, dtype=float)
+        v = np.asarray(values, dtype=float)
+        given = np.isfinite(v)
+        vt, v = vt[given], v[given]
+        st = np.asarray(sample_time_s, dtype=float)
+        pending = self.pending[signal]
+        every = np.concatenate((pending, v))
+        if st.size == 0:
+            self.pending[signal] = _lowest_highest_last(every)
+            return np.zeros(0)
+        # the values up to each sample (its own time included): those since the sample before are
+        # every[ends[k - 1]:ends[k]]
+        ends = np.searchsorted(vt, st, side="right") + pending.size
+        starts = np.concatenate(([0], ends[:-1]))
+        some = ends > starts
+        padded = np.append(every, np.nan)  # an index one past the end stays valid for reduceat
+        bounds = np.column_stack((starts, ends)).ravel()
+        if padded.size > 1:
+            lowest = np.minimum.reduceat(padded, bounds)[::2]
+            highest = np.maximum.reduceat(padded, bounds)[::2]
+        else:
+            lowest = highest = np.full(st.size, np.nan)
+        held_now = np.where(ends > 0, padded[np.maximum(ends - 1, 0)], self.held[signal])
+        held_before = np.concatenate(([self.held[signal]], held_now[:-1]))
+        with np.errstate(invalid="ignore"):
+            above = highest - np.fmax(held_before, held_now)
+            below = np.fmin(held_before, held_now) - lowest
+            # nothing held at the sample before (the first sample, commands only since): nothing to go beyond
+            out = np.where(some & np.isfinite(held_before), np.fmax(np.fmax(above, below), 0.0), 0.0)
+        self.held[signal] = held_now[-1]
+        self.pending[signal] = _lowest_highest_last(every[ends[-1] :])
+        return np.where(np.isfinite(out), out, 0.0)
+
+
+def _lowest_highest_last(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(lowest, highest, last) of some values, all that :class:`CommandExcursions` carries of them."""
+    if values.size == 0:
+        return values
+    return np.array([values.min(), values.max(), values[-1]])
+
+
 def _search_right(t_source: NDArray[np.float64], t_target: NDArray[np.float64]) -> NDArray[np.int64]:
     """``np.searchsorted(t_source, t_target, side="right")`` (``t_source`` sorted) for targets made of runs
     in increasing time (a table's motors, by motor then time): each run merged with the sources, and looked
@@ -477,6 +551,16 @@ def motor_table(
         if sel.any():
             throttle[sel], command_age[sel] = held(series, time_s[sel], COMMAND_MAX_AGE_S)
     columns["throttle"] = throttle
+    # how far each sample's command went beyond the two held ones since the motor's sample before (in
+    # throttle here, in volts once the bus voltage is known); rows without a measurement are no samples
+    measured = np.isfinite(columns["omega_rad_s"]) | np.isfinite(columns["current_a"])
+    excursion = np.full(len(time_s), np.nan)
+    for m, series in commands.items():
+        sel = np.flatnonzero((motors == m) & measured)
+        if sel.size:
+            excursion[sel] = CommandExcursions(1).beyond_held(0, series[0], series[1], time_s[sel])
+    measured_rows = np.flatnonzero(measured & np.isnan(excursion))
+    excursion[measured_rows] = 0.0  # a motor with no commands: nothing seen to move
     interval = None
     if stamped_by_message:
         interval = MessageIntervals(int(motors.max(initial=0))).since_previous(time_s, motors - 1)
@@ -507,7 +591,17 @@ def motor_table(
     columns["voltage_v"], columns["current_a"] = mavlink_esc.motor_inputs(
         throttle, columns["bus_voltage_v"], columns["esc_current_a"]
     )
+    columns["input_excursion_v"] = excursion_v(excursion, columns["bus_voltage_v"])
     return TelemetryTable(columns, source=str(path), meta=meta)
+
+
+def excursion_v(excursion: ArrayLike, bus_voltage_v: ArrayLike) -> NDArray[np.float64]:
+    """``input_excursion_v`` (module doc) from the excursion in throttle: times the bus voltage (the ESC as
+    an ideal PWM stage, as :func:`.mavlink_esc.motor_inputs`); 0 where the bus voltage is unknown, NaN
+    where the excursion is (no sample)."""
+    e = np.asarray(excursion, dtype=float)
+    bus = np.asarray(bus_voltage_v, dtype=float)
+    return np.where(np.isfinite(bus) & (bus > 0), e * bus, np.where(np.isnan(e), np.nan, 0.0))
 
 
 def no_esc_error(path: Path, fmt: str, counts: Mapping[str, int], wanted: str) -> DataError:

@@ -51,10 +51,12 @@ from .assemble import (
     COMMAND_MAX_AGE_S,
     CONTEXT_MAX_AGE_S,
     MAX_ESC_SLOTS,
+    CommandExcursions,
     HeldValues,
     MessageIntervals,
     Series,
     bus_voltage_or_battery,
+    excursion_v,
     pairing_uncertainty,
 )
 
@@ -529,6 +531,7 @@ class SamplePairing:
         self.commands = HeldValues(MAX_MOTORS, COMMAND_MAX_AGE_S)  # motor m: signal m - 1
         self.battery = HeldValues(2, CONTEXT_MAX_AGE_S)  # voltage [V], current [A]
         self.messages = MessageIntervals(MAX_MOTORS)  # motor m: signal m - 1
+        self.excursions = CommandExcursions(MAX_MOTORS)  # motor m: signal m - 1
 
     def pair(self, reading: MotorReading) -> dict[str, NDArray[Any]]:
         """The table columns of the reading's fresh ESC rows (and their ``position``). Pass the whole
@@ -546,6 +549,21 @@ class SamplePairing:
         command, command_age = self.commands.hold(
             reading.command_time_s, throttle, time_s, motor - 1, present=np.isfinite(throttle)
         )
+        # how far each motor's commands went beyond the two held ones since its sample before; a motor
+        # with commands but no sample in this part carries them to its next sample
+        excursion = np.zeros(len(time_s))
+        command_time = np.asarray(reading.command_time_s, dtype=float)
+        commanded = throttle.ndim == 2 and throttle.shape[0] > 0
+        with_commands = (
+            np.flatnonzero(np.isfinite(throttle).any(axis=0)) + 1 if commanded else np.zeros(0, int)
+        )
+        for m in np.union1d(np.unique(motor), with_commands).astype(int).tolist():
+            rows = np.flatnonzero(motor == m)
+            rows = rows[np.argsort(time_s[rows], kind="stable")]  # a reading's rows: by ESC slot first
+            given = throttle[:, m - 1] if commanded else np.zeros(0)
+            excursion[rows] = self.excursions.beyond_held(
+                m - 1, command_time[: len(given)], given, time_s[rows]
+            )
         battery, _ = self.battery.hold(
             reading.battery_time_s,
             np.stack((reading.battery_voltage_v, reading.battery_current_a), axis=-1),
@@ -567,6 +585,7 @@ class SamplePairing:
             "battery_voltage_v": battery_v,
             "battery_current_a": battery_a,
             "pairing_s": pairing_uncertainty(command_age, interval),
+            "input_excursion_v": excursion_v(excursion, bus),
             "position": position,
         }
         if len(position) > 1:

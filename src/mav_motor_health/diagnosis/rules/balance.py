@@ -16,6 +16,10 @@ adds a slow look: the deviations low-passed again with ``slow_factor`` times tha
 ``bus_ref_v`` > 0: ``step_v`` and ``activity_ref_v`` are volts at this bus voltage and scale with the
 vehicle's (a step of 0.8 V at 11.1 V is one of 2.4 V at 33.3 V: the same command change); 0: volts as
 they are.
+
+``excursion_weight`` > 0 (an option, off in every shipped profile): the input activity also takes how far
+each sample's command went beyond the two held commands since the sample before (the sources' column
+``input_excursion_v``, a command that dipped and came back between two ESC reports), weighted by it.
 """
 
 from __future__ import annotations
@@ -66,6 +70,10 @@ class BalanceRule(CompareRule):
     residual_tau_max_s: float = 2.0
     slow_factor: float = 0.0
     bus_ref_v: float = 0.0
+    #: how much of each sample's command excursion between two ESC reports (``input_excursion_v``) the input
+    #: activity takes, as a zigzag of ``(w·e)²`` (model/balance.py); 0: none (the default: measured on the
+    #: held-out worlds, docs/flight.md "A command dip between two ESC reports, measured")
+    excursion_weight: float = 0.0
 
     def validate(self) -> None:
         check_settling(self.step_v, self.settle_s)
@@ -84,6 +92,10 @@ class BalanceRule(CompareRule):
         if not self.activity_tau_s > 0:
             raise ConfigError(
                 f"{self.activity_tau_s!r}", key="steady.activity_tau_s", expected="a time constant > 0 s"
+            )
+        if not 0 <= self.excursion_weight <= 1:
+            raise ConfigError(
+                f"{self.excursion_weight!r}", key="steady.excursion_weight", expected="a weight 0 <= w <= 1"
             )
 
     def new_carry(self) -> BalanceRuleCarry:
@@ -120,6 +132,11 @@ class BalanceRule(CompareRule):
             tau_max_s=self.residual_tau_max_s,
             input_current_a=frame.sensor_current_a if command is not None else None,
             duty=command if frame.sensor_current_a is not None else None,
+            input_excursion_v=(
+                None
+                if frame.input_excursion_v is None or not self.excursion_weight > 0
+                else self.excursion_weight * np.asarray(frame.input_excursion_v, dtype=float)
+            ),
         )
         omega_pred, current_pred = bal.omega_model_rad_s, bal.current_model_a
         # A stalled motor: the speed itself (the lower of the sample and its low-pass, so that a

@@ -78,6 +78,9 @@ class Frame:
     #: how far apart the source may have paired each sample and its command [s]: one number for all, or
     #: an array of the rows' shape (one per sample); None or 0: the command of the sample's own instant
     pairing_s: float | NDArray[np.float64] | None = None
+    #: how far each sample's input went beyond the two held inputs since the sample before [V] (the
+    #: table's ``input_excursion_v``, telemetry/assemble.py); None: not at all
+    input_excursion_v: NDArray[np.float64] | None = None
     noise: Sequence[BandNoise] | None = None
 
     # the comparison (a CompareRule)
