@@ -239,6 +239,38 @@ def test_pairing_error_is_the_speed_a_command_that_far_off_could_move(paper_moto
     assert np.all(still == 0.0)  # a command that stands still is paired right whenever it was read
 
 
+def test_a_command_dip_between_two_samples_counts_as_the_commands_movement(paper_motor) -> None:
+    """A command that stands still at the samples but dips by e and back between them (``input_excursion_v``)
+    moved 2e per interval: the pairing error of a ramp of 2e/Δt (diagnosis/pairing.py); none given, none."""
+    from mav_motor_health.diagnosis.pairing import PairingCarry, pairing_error_rad_s, pairing_error_rows
+
+    t = np.arange(0.0, 4.0, 0.02)
+    v = np.full(t.size, 7.0)
+    w_model = steady_state(paper_motor, v).omega_rad_s
+
+    def rows(x: np.ndarray) -> np.ndarray:
+        return np.asarray(x, dtype=float).reshape(1, -1)
+
+    tau = np.full((1, t.size), 0.15)
+    dips, _ = pairing_error_rows(
+        paper_motor,
+        rows(t),
+        rows(v),
+        rows(w_model),
+        0.05,
+        tau,
+        [PairingCarry()],
+        input_excursion_v=rows(np.full(t.size, 0.02)),
+    )
+    ramp, _ = pairing_error_rad_s(paper_motor, t, 7.0 + 2.0 * t, w_model, 0.05, 0.15)
+    settled = t > 1.0
+    np.testing.assert_allclose(dips[0][settled], ramp[settled], rtol=1e-6)  # 2 × 0.02 V per 0.02 s: 2 V/s
+    none, _ = pairing_error_rows(
+        paper_motor, rows(t), rows(v), rows(w_model), 0.05, tau, [PairingCarry()], input_excursion_v=None
+    )
+    assert np.all(none == 0.0)
+
+
 def test_a_pairing_per_sample_is_the_one_number_where_all_are_equal(paper_motor) -> None:
     """The pairing guard weighs each sample's own pairing (a log's ``pairing_s`` column, the live agent's
     samples'): all equal, it is the guard with that one number — the pairing error, and the whole

@@ -254,6 +254,7 @@ _STEADY_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "slow_factor": (0.0, 100.0, ""),
     "bus_ref_v": (0.0, None, "V"),
     "excursion_weight": (0.0, 1.0, ""),
+    "excursion_pairing_weight": (0.0, 1.0, ""),
 }
 
 

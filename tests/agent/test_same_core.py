@@ -257,8 +257,8 @@ def test_a_simulated_tlog_streamed_through_the_agent_gives_replays_samples(paper
 def test_commands_between_two_esc_reports_count_alike_live_and_in_replay(paper_motor, tmp_path):
     """A world whose ESCs report at 10 Hz and whose commands are logged at 50 Hz (world 2): the commands
     between two reports go beyond the two held ones (``input_excursion_v``, telemetry/assemble.py), and
-    with ``steady.excursion_weight`` (an option, off in the shipped profiles) the balance rule's input
-    activity takes them in. The agent, reading the .tlog in batches, carries the commands from one batch
+    with ``steady.excursion_weight`` and ``excursion_pairing_weight`` (options, off in the shipped
+    profiles) the balance rule's input activity and the pairing guard take them in. The agent, reading the .tlog in batches, carries the commands from one batch
     to the next sample: the same activity, the same diagnosis as replay."""
     import dataclasses
 
@@ -276,10 +276,12 @@ def test_commands_between_two_esc_reports_count_alike_live_and_in_replay(paper_m
     assert (table["input_excursion_v"][fresh] > 0.05).mean() > 0.2  # not vacuous: commands moved
     shipped = load_profile("flight")
     assert shipped.steady.excursion_weight == 0.0
-    profile = dataclasses.replace(shipped, steady=dataclasses.replace(shipped.steady, excursion_weight=1.0))
+    assert shipped.steady.excursion_pairing_weight == 0.0
+    both = {"excursion_weight": 1.0, "excursion_pairing_weight": 1.0}  # the activity and the pairing guard
+    profile = dataclasses.replace(shipped, steady=dataclasses.replace(shipped.steady, **both))
     profile_file = tmp_path / "with_excursions.toml"
     profile_file.write_text(dump_profile(profile), encoding="utf-8")
-    assert load_profile(profile_file).steady.excursion_weight == 1.0
+    assert load_profile(profile_file).steady == profile.steady
     batch = diagnose(table, paper_motor, profile)
     rows, _ = stream_through_agent(path, str(profile_file))
     assert len(rows) == fresh.sum()
@@ -290,7 +292,7 @@ def test_commands_between_two_esc_reports_count_alike_live_and_in_replay(paper_m
             np.testing.assert_array_equal(
                 [r[name] for r in live], batch[name][sel], err_msg=f"{motor} {name}"
             )
-        for name in ("input_activity_v", "omega_model_rad_s"):
+        for name in ("input_activity_v", "omega_model_rad_s", "pairing_error_rad_s"):
             np.testing.assert_allclose(
                 [r[name] for r in live], batch[name][sel], rtol=1e-9, atol=1e-12, err_msg=f"{motor} {name}"
             )
@@ -303,3 +305,9 @@ def test_commands_between_two_esc_reports_count_alike_live_and_in_replay(paper_m
     assert (batch["input_activity_v"][judged] >= none["input_activity_v"][judged] - 1e-12).all()
     ratio = batch["input_activity_v"][judged] / np.fmax(none["input_activity_v"][judged], 1e-9)
     assert np.median(ratio) > 1.05
+    np.testing.assert_array_equal(off["pairing_error_rad_s"], none["pairing_error_rad_s"])
+    assert (batch["pairing_error_rad_s"][judged] >= none["pairing_error_rad_s"][judged] - 1e-12).all()
+    assert (
+        np.median(batch["pairing_error_rad_s"][judged] / np.fmax(none["pairing_error_rad_s"][judged], 1e-9))
+        > 1.05
+    )

@@ -40,6 +40,11 @@ which is what loosely paired logs are misread as. The *pairing error* is that sp
 sizeable part of the speed band the current is not used (the tree falls back to speed alone, with its
 wider band), where it is a sizeable part of even that band the sample is not judged.
 
+Where the source says how far the command went beyond the two samples' commands in between
+(``input_excursion_v``, a dip and back between two ESC reports; :mod:`..telemetry.assemble`) and the
+balance rule's ``excursion_pairing_weight`` w > 0 (an option, off in the shipped profiles), the input's
+rate of change counts that way too: ``(|ΔV| + 2·w·e)/Δt``, the command having moved down and back.
+
 A ``u_i`` of NaN (no command held: no voltage either) counts as none. A source that pairs each sample with
 the command of its own instant (the simulator's table, a CSV with both) has no pairing error: no
 ``pairing_s`` (or 0 for all).
@@ -336,17 +341,24 @@ def pairing_error_rows(
     tau_s: NDArray[np.float64],
     carries: list[PairingCarry],
     lengths: list[int] | None = None,
+    input_excursion_v: ArrayLike | None = None,
 ) -> tuple[NDArray[np.float64], list[PairingCarry]]:
     """:func:`pairing_error_rad_s` of several motors at once: rows of samples (2-D), one carry per row;
     ``pairing_s`` one number or one per sample (2-D like the samples); ``lengths`` each row's number of
-    samples (None: all; the rest is padding after them)."""
+    samples (None: all; the rest is padding after them). ``input_excursion_v`` (like the samples; None:
+    none): how far the input went beyond the two samples' inputs in between; down and back, it adds twice
+    that to the input's movement from one sample to the next (the module doc)."""
     t, v = time_s, voltage_v
     rows, n = t.shape
     counts = [n] * rows if lengths is None else lengths
     previous_t = previous(t, [c.time_s for c in carries])
     previous_v = previous(v, [c.voltage_v for c in carries])
     with np.errstate(divide="ignore", invalid="ignore"):
-        rate = np.abs(v - previous_v) / (t - previous_t)
+        moved = np.abs(v - previous_v)
+        if input_excursion_v is not None:  # down e and back up e between the two samples
+            excursion = np.broadcast_to(np.asarray(input_excursion_v, dtype=float), t.shape)
+            moved = moved + 2.0 * np.where(np.isfinite(excursion), excursion, 0.0)
+        rate = moved / (t - previous_t)
     rate = np.where(np.isfinite(rate) & (t > previous_t), rate, np.nan)  # NaN holds the low-pass
     mean_rate, rate_carries = first_order_responses(t, rate, tau_s, [c.rate for c in carries], counts)
     _, d = linearised_slopes(params, omega_model_rad_s)

@@ -19,7 +19,9 @@ they are.
 
 ``excursion_weight`` > 0 (an option, off in every shipped profile): the input activity also takes how far
 each sample's command went beyond the two held commands since the sample before (the sources' column
-``input_excursion_v``, a command that dipped and came back between two ESC reports), weighted by it.
+``input_excursion_v``, a command that dipped and came back between two ESC reports), weighted by it;
+``excursion_pairing_weight`` > 0 (also off) gives them to the pairing guard instead, as the command's
+movement between two samples (:mod:`..pairing`).
 """
 
 from __future__ import annotations
@@ -74,6 +76,9 @@ class BalanceRule(CompareRule):
     #: activity takes, as a zigzag of ``(w·e)²`` (model/balance.py); 0: none (the default: measured on the
     #: held-out worlds, docs/flight.md "A command dip between two ESC reports, measured")
     excursion_weight: float = 0.0
+    #: the same excursions as the pairing guard's command movement between two samples, ``|ΔV| + 2·w·e``
+    #: (diagnosis/pairing.py); 0: none (the default, measured in the same place)
+    excursion_pairing_weight: float = 0.0
 
     def validate(self) -> None:
         check_settling(self.step_v, self.settle_s)
@@ -93,10 +98,11 @@ class BalanceRule(CompareRule):
             raise ConfigError(
                 f"{self.activity_tau_s!r}", key="steady.activity_tau_s", expected="a time constant > 0 s"
             )
-        if not 0 <= self.excursion_weight <= 1:
-            raise ConfigError(
-                f"{self.excursion_weight!r}", key="steady.excursion_weight", expected="a weight 0 <= w <= 1"
-            )
+        for name in ("excursion_weight", "excursion_pairing_weight"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise ConfigError(
+                    f"{getattr(self, name)!r}", key=f"steady.{name}", expected="a weight 0 <= w <= 1"
+                )
 
     def new_carry(self) -> BalanceRuleCarry:
         return BalanceRuleCarry()
