@@ -151,8 +151,9 @@ def diagnose_motor(
     (:mod:`.pairing`): one value per sample (a log table's ``pairing_s`` column, the live agent's samples'),
     or one number for all (None or 0: the command of the sample's own instant). ``input_excursion_v``
     how far each sample's input went beyond the two held inputs since the sample before [V] (a log
-    table's column of that name, telemetry/assemble.py), which the balance rule counts as input activity
-    (None: not at all). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
+    table's column of that name, telemetry/assemble.py), which the balance rule and its pairing guard
+    weigh where the profile asks them to (``steady.excursion_weight``, ``excursion_pairing_weight``; off
+    in the shipped profiles; None: not at all). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
     bands from (:mod:`.noise`). A motor alone has no siblings (:mod:`.siblings`): :func:`start_motor`
     and :meth:`StartedCall.finish` with the vehicle stage between them judge the torque against them.
     """

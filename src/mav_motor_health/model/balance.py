@@ -60,8 +60,9 @@ The *input activity* (:func:`input_activity`) measures how much the input zigzag
 balances' noise grows with it (a command that moves between samples leaves the sensed current behind),
 so the flight rule averages longer and the flight profile widens its bands with it. Where the source says
 how far the input went beyond the two samples' inputs in between (``input_excursion_v``, a command that
-dipped and came back between two ESC reports, telemetry/assemble.py), that excursion ``e`` is a zigzag of
-``e²`` (down ``e`` and up again), whichever is larger. The balance rule
+dipped and came back between two ESC reports, telemetry/assemble.py) and the rule passes it (the
+profile option ``steady.excursion_weight``, off in the shipped profiles), that excursion ``e`` is a zigzag
+of ``e²`` (down ``e`` and up again), whichever is larger. The balance rule
 scales it by √(sample interval / 40 ms): the noise of an average grows as √(interval) for the same
 averaging time, so an ESC that reports at 10 Hz counts as more active than one at 50 Hz with the same
 input.

@@ -52,7 +52,8 @@ before went beyond the two held commands (the one held at that sample and at thi
 voltage. A command that dips and comes back between two ESC reports (10 Hz telemetry in 50 Hz command
 messages) leaves both held commands alike, so the change from one sample to the next says nothing of
 it, while the motor's current and speed followed the dip and a low-pass still holds it; the balance rule
-takes the excursion into its input activity as the zigzag it is (model/balance.py). It is 0 where the
+can take the excursion into its input activity or its pairing guard (profile options, off in the shipped
+profiles: docs/flight.md, "A command dip between two ESC reports, measured"). It is 0 where the
 command went no farther than the two held ones (a command of the sample's own instant: a simulator's
 table, a CSV, a .bin whose ESC samples come with each command), NaN on rows without a measurement.
 
