@@ -356,8 +356,9 @@ def pairing_error_rows(
     with np.errstate(divide="ignore", invalid="ignore"):
         moved = np.abs(v - previous_v)
         if input_excursion_v is not None:  # down e and back up e between the two samples
-            excursion = np.broadcast_to(np.asarray(input_excursion_v, dtype=float), t.shape)
-            moved = moved + 2.0 * np.where(np.isfinite(excursion), excursion, 0.0)
+            moved = moved + 2.0 * nan_to_zero(
+                np.broadcast_to(np.asarray(input_excursion_v, dtype=float), t.shape)
+            )
         rate = moved / (t - previous_t)
     rate = np.where(np.isfinite(rate) & (t > previous_t), rate, np.nan)  # NaN holds the low-pass
     mean_rate, rate_carries = first_order_responses(t, rate, tau_s, [c.rate for c in carries], counts)

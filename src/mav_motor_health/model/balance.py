@@ -77,6 +77,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import ndtr, ndtri
 
+from .._arrays import nan_to_zero
 from .dynamics import ResponseCarry, first_order_responses, last_of, previous
 from .equations import current_from_speed, steady_state
 from .params import MotorParams
@@ -395,8 +396,8 @@ def balance_deviations_rows(
     if input_excursion_v is not None:
         # an input that went and came back between two samples zigzagged by its excursion e (down e and
         # up e: −ΔV_n·ΔV_(n−1) = e²), though both samples' inputs are alike
-        excursion = np.asarray(input_excursion_v, dtype=float)
-        zigzag_in = np.fmax(zigzag_in, np.where(np.isfinite(excursion), excursion * excursion, 0.0))
+        excursion = nan_to_zero(np.asarray(input_excursion_v, dtype=float))
+        zigzag_in = np.fmax(zigzag_in, excursion * excursion)
     low_passed, low_pass_carries = first_order_responses(
         t,
         np.concatenate([zigzag_in, zigzag_in, gaps]),

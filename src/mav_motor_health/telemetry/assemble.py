@@ -555,13 +555,11 @@ def motor_table(
     # how far each sample's command went beyond the two held ones since the motor's sample before (in
     # throttle here, in volts once the bus voltage is known); rows without a measurement are no samples
     measured = np.isfinite(columns["omega_rad_s"]) | np.isfinite(columns["current_a"])
-    excursion = np.full(len(time_s), np.nan)
+    excursion = np.where(measured, 0.0, np.nan)  # a motor with no commands: nothing seen to move
     for m, series in commands.items():
         sel = np.flatnonzero((motors == m) & measured)
         if sel.size:
             excursion[sel] = CommandExcursions(1).beyond_held(0, series[0], series[1], time_s[sel])
-    measured_rows = np.flatnonzero(measured & np.isnan(excursion))
-    excursion[measured_rows] = 0.0  # a motor with no commands: nothing seen to move
     interval = None
     if stamped_by_message:
         interval = MessageIntervals(int(motors.max(initial=0))).since_previous(time_s, motors - 1)

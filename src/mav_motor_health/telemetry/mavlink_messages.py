@@ -557,7 +557,7 @@ class SamplePairing:
         with_commands = (
             np.flatnonzero(np.isfinite(throttle).any(axis=0)) + 1 if commanded else np.zeros(0, int)
         )
-        for m in np.union1d(np.unique(motor), with_commands).astype(int).tolist():
+        for m in np.union1d(motor, with_commands).astype(int).tolist():
             rows = np.flatnonzero(motor == m)
             rows = rows[np.argsort(time_s[rows], kind="stable")]  # a reading's rows: by ESC slot first
             given = throttle[:, m - 1] if commanded else np.zeros(0)

@@ -138,11 +138,7 @@ class BalanceRule(CompareRule):
             tau_max_s=self.residual_tau_max_s,
             input_current_a=frame.sensor_current_a if command is not None else None,
             duty=command if frame.sensor_current_a is not None else None,
-            input_excursion_v=(
-                None
-                if frame.input_excursion_v is None or not self.excursion_weight > 0
-                else self.excursion_weight * np.asarray(frame.input_excursion_v, dtype=float)
-            ),
+            input_excursion_v=frame.excursions(self.excursion_weight),
         )
         omega_pred, current_pred = bal.omega_model_rad_s, bal.current_model_a
         # A stalled motor: the speed itself (the lower of the sample and its low-pass, so that a

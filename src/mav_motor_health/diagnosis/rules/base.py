@@ -159,6 +159,13 @@ class Frame:
         """Where the current may be used: a plausible sensor and a measurement."""
         return ((self.sensor_flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(self.current_a)
 
+    def excursions(self, weight: float) -> NDArray[np.float64] | None:
+        """``input_excursion_v`` times a rule's ``weight`` for it; None where the weight is 0 or the
+        source gives none (the rules then take none)."""
+        if self.input_excursion_v is None or not weight > 0:
+            return None
+        return weight * np.asarray(self.input_excursion_v, dtype=float)
+
 
 class Rule(ABC):
     """A diagnosis rule: frozen settings, checked when made; one :meth:`judge` with its own carry."""

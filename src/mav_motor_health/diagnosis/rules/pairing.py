@@ -50,18 +50,11 @@ class PairingGuard(Rule):
             frame.low_pass_s,
             carries,
             frame.ragged,
-            input_excursion_v=self._excursion(frame),
+            # the balance rule's setting: the guard serves that rule alone
+            input_excursion_v=frame.excursions(getattr(self.profile.steady, "excursion_pairing_weight", 0.0)),
         )
         frame.pairing_error_rad_s = error
         return carries
-
-    def _excursion(self, frame: Frame) -> NDArray[np.float64] | None:
-        """The command's excursions between reports, weighted by the balance rule's
-        ``excursion_pairing_weight`` (None where it is 0 or the source gives none)."""
-        weight = float(getattr(self.profile.steady, "excursion_pairing_weight", 0.0))
-        if frame.input_excursion_v is None or not weight > 0:
-            return None
-        return weight * np.asarray(frame.input_excursion_v, dtype=float)
 
 
 @dataclass(frozen=True)
