@@ -201,6 +201,40 @@ def test_beyond_the_speeds_identification_covered_nothing_is_judged_but_a_stall_
     assert (stalled == MotorState.F4_2).mean() > 0.9
 
 
+def test_a_typical_current_inflated_by_the_identification_flights_air_gives_way_to_this_flights(
+    paper_motor,
+) -> None:
+    """An ESC that reports its input current, identified in gusty air, gives a typical current a few times
+    what its motor draws in calm air (the duty ripple's copper loss, rules/tree.py): the F2.1/F4.2 split
+    scaled from it lies above an F4.2 stall. The lower of identification's and this flight's own typical
+    current sets the split: the F4.2 stall is named F4.2 again, the F2.1 stall stays F2.1, and where the
+    vehicle's noise gives no speed range (an older file) nothing of the flight counts, as before."""
+    profile = load_profile("flight_vehicle")
+    assert profile.stall_split_typical == pytest.approx(1.58)
+    for log, fault in ((FLIGHT, MotorState.F4_2), (SITL_LOGS / "flight_F2.1_moderate.csv", MotorState.F2_1)):
+        table = sources.read(log)
+        named = {}
+        for typical in (3.8, 3.0 * 3.8):  # the motor's hover current, and three times it
+            noise = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=typical) for m in range(1, 7)}
+            without_range = diagnose(table, paper_motor, profile, noise)
+            model = without_range["omega_model_rad_s"][without_range["steady"]]
+            low, high = np.quantile(model, [0.01, 0.99])
+            ranged = {
+                m: dataclasses.replace(n, omega_low_rad_s=low, omega_high_rad_s=high)
+                for m, n in noise.items()
+            }
+            with_range = diagnose(table, paper_motor, profile, ranged)
+            for name, result in (("no range", without_range), ("range", with_range)):
+                after = result["announced"][(result["motor"] == 1) & (result["time_s"] > 31.0)]
+                named[typical, name] = MotorState(int(np.bincount(after).argmax()))
+                assert (after == named[typical, name]).mean() > 0.9
+                assert not (result["announced"][result["motor"] != 1] != 0).any()
+        assert named[3.8, "no range"] == named[3.8, "range"] == fault
+        assert named[3.0 * 3.8, "range"] == fault  # this flight's lower typical current
+        # identification's inflated one alone: an F4.2 read as F2.1 (what the flight's own figure repairs)
+        assert named[3.0 * 3.8, "no range"] == (MotorState.F2_1 if fault == MotorState.F4_2 else fault)
+
+
 def test_a_stall_is_named_however_wide_the_vehicles_noise_band(paper_motor) -> None:
     """A motor expected at twice the stop speed is turning, whatever the speed band: a noisy vehicle's
     wide band (here ±900 rad/s, beyond any speed the motor turns at) must not hide a stopped rotor (tree rule 1)."""

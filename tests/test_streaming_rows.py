@@ -16,6 +16,8 @@ from mav_motor_health.config import load_profile
 from mav_motor_health.diagnosis.noise import BandNoise, EquationNoise
 from mav_motor_health.diagnosis.pipeline import MotorBatch, StreamingDiagnoser, diagnose_motor
 from mav_motor_health.diagnosis.plausibility import CurrentSumCheck, PlausibilityRule
+from mav_motor_health.diagnosis.rules import tree as tree_rules
+from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.diagnosis.vehicle_check import VehicleCheck, VehicleCheckRule
 from mav_motor_health.telemetry import sources
 
@@ -70,18 +72,26 @@ def assert_same(got: dict[str, np.ndarray], want: dict[str, np.ndarray], motor: 
 
 
 @pytest.mark.parametrize("profile_name", ["flight", "flight_dynamic", "testbed", "flight_vehicle"])
-def test_motors_in_one_call_give_what_one_call_per_motor_gives(paper_motor, motors, profile_name) -> None:
+def test_motors_in_one_call_give_what_one_call_per_motor_gives(
+    paper_motor, motors, profile_name, monkeypatch
+) -> None:
     profile = load_profile(profile_name)
     rng = np.random.default_rng(7)
     # bands from each motor's own noise (flight_vehicle): every motor a different one, so that a row
     # given another motor's noise would show; the torque balance's too, half of them read through the
-    # duty (an input current: not judged in it, rules/equations.py)
+    # duty (an input current: not judged in it, rules/equations.py). The stall split's typical current
+    # three times the motor's hover current, as an input current identified in gusty air gives: this
+    # flight's own (carried from call to call, counted from its 50th sample here so that it counts
+    # before the stall in this window) names the stall F4.2 (rules/tree.py)
+    monkeypatch.setattr(tree_rules, "MIN_FLIGHT_SAMPLES", 50)
     noise = {
         m: BandNoise(
             6.0 + m,
             0.2 + 0.05 * m,
             15.0 + m,
             0.4,
+            current_typical_a=3.0 * 3.8,
+            omega_low_rad_s=300.0,
             torque=EquationNoise(0.001 + 0.0002 * m, 0.002, 0.0, 0.0003 * m, through_duty=m % 2 == 1),
         )
         for m in motors
@@ -144,6 +154,10 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(paper_motor, moto
             np.testing.assert_array_equal(rows[name], whole[name], err_msg=f"motor {m}: {name}")
     if profile_name in ("flight", "flight_vehicle"):  # the stall was seen, and named the same way in both
         assert (np.concatenate([p["announced"] for p in parts_all[1]]) != 0).any()
+    if profile_name == "flight_vehicle":  # by the split of the flight's own typical current
+        announced = np.concatenate([p["announced"] for p in parts_all[1]])
+        assert set(np.unique(announced)) - {0} == {MotorState.F4_2}
+        assert together.carries[1].rules["tree"].count >= 50
 
 
 def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor) -> None:

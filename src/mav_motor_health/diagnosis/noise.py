@@ -228,6 +228,7 @@ class BandNoise:
     current_a_per_v: float = 0.0
     band_samples: int = 0
     #: the motor's median current on the judged samples [A]: its size, which the stall split scales with
+    #: (or with the flight's own where lower: rules/tree.py)
     current_typical_a: float = math.nan
     #: the model speeds the healthy flight covered (1st and 99th percentile of the judged samples'): where
     #: the model was checked against this vehicle; NaN: not known

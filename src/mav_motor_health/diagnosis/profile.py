@@ -124,8 +124,9 @@ class ThresholdProfile:
     identification on the vehicle's healthy flight (:mod:`.noise`); ``speed_band_rad_s``,
     ``current_band_a`` and ``activity_band`` are then not used. 0, the default: the absolute bands.
     ``stall_split_typical`` (> 0, with ``noise_bands``): the F2.1/F4.2 split of a stalled motor's current
-    is this multiple of the motor's typical current in flight (measured with the noise), instead of
-    ``stall_split_a``: a stalled motor's current scales with the motor's size, not with the paper's.
+    is this multiple of the motor's typical current in flight (measured with the noise, or this flight's
+    own where lower: rules/tree.py), instead of ``stall_split_a``: a stalled motor's current scales with
+    the motor's size, not with the paper's.
     ``range_margin`` (> 0, with ``noise_bands``): samples whose model speed lies beyond the speeds the
     identification flight covered, by more than this share of the range's ends, or whose input activity
     exceeds the flight's busiest by more than this share, are not judged (the model, or its noise, was

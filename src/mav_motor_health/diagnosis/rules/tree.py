@@ -1,5 +1,23 @@
 """The paper's threshold tree (:mod:`..tree`) as pipeline rules: the tree on every sample, then the slow
-look where the tree saw nothing."""
+look where the tree saw nothing.
+
+**The stall split's scale.** A stalled motor's current tells an open phase (F2.1, little) from a lost
+back-EMF signal (F4.2, more); with the profile's ``stall_split_typical`` the split is that multiple of the
+motor's typical current in flight (the paper's 6 A over its motor's 3.8 A at hover). Identification
+measures the typical current on its healthy flight; but where the ESC reports its *input* current, the
+reading divided by the duty carries the duty ripple's copper loss, ``V·σ_d²/R``, which grows with the air
+(``benchmarks/bench_input_ripple.py``), while a stalled motor's command sits at full duty, with no
+ripple. On a vehicle identified in gusty air the typical current then came out 2–3 × what the motor
+draws in calm air, the split above any F4.2 stall, and every F4.2 was named F2.1 (docs/flight.md, "The
+stall split from the lower of two typical currents"). Ripple only ever adds, so of two typical currents
+the lower is the nearer the motor's own: the split's scale is the lower of identification's and this
+flight's so far: the geometric mean of the motor's measured current on its judged samples, counted once
+:data:`MIN_FLIGHT_SAMPLES` are in. A sample whose model speed is below the speeds identification covered
+(idle, the ground, a long descent) or that is stalled (below the tree's stop speed) does not count: its
+current is not the motor's typical one and would set the split too low; samples above those speeds can
+only raise this flight's figure, which the lower of the two then leaves aside. With a motor-side current
+the two agree and nothing changes.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +27,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ...model.dynamics import last_of
+from ..noise import MIN_MOTOR_SAMPLES
+from ..stall import stop_speeds
 from ..states import MotorState
 from ..tree import agreeing_departures, classify_depth
 from .base import Frame, Rule
@@ -16,7 +37,20 @@ from .base import Frame, Rule
 if TYPE_CHECKING:
     from ..profile import ThresholdProfile
 
-__all__ = ["SlowLook", "Tree"]
+__all__ = ["MIN_FLIGHT_SAMPLES", "SlowLook", "Tree", "TypicalCarry"]
+
+#: judged samples within the identified speeds before this flight's typical current counts (as many as
+#: identification needs to measure a motor's noise)
+MIN_FLIGHT_SAMPLES = MIN_MOTOR_SAMPLES
+
+
+@dataclass(frozen=True)
+class TypicalCarry:
+    """This flight's typical current of one motor so far: the sum of the logs of its counted samples' current
+    and how many (module doc)."""
+
+    log_sum: float = 0.0
+    count: int = 0
 
 
 @dataclass(frozen=True)
@@ -26,7 +60,11 @@ class Tree(Rule):
     name = "tree"
     profile: ThresholdProfile
 
-    def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
+    def new_carry(self) -> TypicalCarry:
+        return TypicalCarry()
+
+    def judge(self, frame: Frame, carries: list[TypicalCarry]) -> list[TypicalCarry]:
+        split, carries = self._stall_split(frame, carries)
         frame.state, frame.depth = classify_depth(
             self.profile,
             omega_rad_s=frame.omega_judged_rad_s,
@@ -40,25 +78,65 @@ class Tree(Rule):
             activity_v=frame.activity_v,
             omega_free_rad_s=frame.omega_free_rad_s,
             bands=(frame.speed_band_rad_s, frame.current_band_a, frame.current_band_below_a),
-            stall_split_a=self._stall_split(frame),
+            stall_split_a=split,
             stop_cap_rad_s=frame.stop_cap_rad_s,
         )
         return carries
 
-    def _stall_split(self, frame: Frame) -> NDArray[np.float64] | None:
+    def _stall_split(
+        self, frame: Frame, carries: list[TypicalCarry]
+    ) -> tuple[NDArray[np.float64] | None, list[TypicalCarry]]:
         """The F2.1/F4.2 split of each row where the profile scales it with the motor's typical current
-        and the motor's noise has one; None: the profile's split everywhere."""
+        and the motor's noise has one (the lower of identification's and this flight's so far, module
+        doc), and the carries advanced; None: the profile's split everywhere."""
         profile, noise = self.profile, frame.noise
         if not (profile.stall_split_typical > 0 and noise):
-            return None
+            return None, carries
         typical = np.array([n.current_typical_a for n in noise], dtype=float)
         if not np.isfinite(typical).any():
-            return None
+            return None, carries
+        flight, carries = flight_typical(frame, carries)
         fallback = np.broadcast_to(
             np.asarray(profile.stall_split(frame.bus_voltage_v), dtype=float), frame.shape
         )
-        own = profile.stall_split_typical * typical[:, None]
-        return np.where(np.isfinite(own), own, fallback)
+        own = profile.stall_split_typical * np.fmin(typical[:, None], flight)  # NaN flight: identification's
+        return np.where(np.isfinite(own), own, fallback), carries
+
+
+def flight_typical(
+    frame: Frame, carries: list[TypicalCarry]
+) -> tuple[NDArray[np.float64], list[TypicalCarry]]:
+    """Each row's typical current of this flight up to each sample [A] (the geometric mean of its judged,
+    trusted, positive currents where its model speed is not below the speeds identification covered and
+    it turns above the tree's stop speed; NaN
+    until :data:`MIN_FLIGHT_SAMPLES` are counted, and on a motor whose noise does not give that range), and
+    the carries advanced."""
+    noise = frame.noise or ()
+    low = np.array([n.omega_low_rad_s for n in noise], dtype=float)[:, None]
+    width = frame.shape[1]
+    current, model = frame.current_a, frame.omega_model_rad_s
+    expected = model if frame.omega_expected_rad_s is None else frame.omega_expected_rad_s
+    stop, _ = stop_speeds(frame.profile, expected, frame.stop_cap_rad_s)
+    counted = (
+        (np.arange(width)[None, :] < np.asarray(frame.counts)[:, None])
+        & frame.steady
+        & frame.current_trusted()
+        & (current > 0)
+        & (model >= low)  # not below the speeds identification covered (NaN: not measured, none counts)
+        & (np.abs(frame.omega_rad_s) >= stop)  # turning: a stall is not the motor's typical current
+    )
+    logs = np.log(np.where(counted, current, 1.0))
+    total = np.cumsum(logs, axis=1) + np.array([[c.log_sum] for c in carries])
+    count = np.cumsum(counted, axis=1) + np.array([[c.count] for c in carries])
+    with np.errstate(invalid="ignore"):
+        flight = np.where(count >= MIN_FLIGHT_SAMPLES, np.exp(total / np.maximum(count, 1)), np.nan)
+    news = [
+        carry if last_total is None else TypicalCarry(float(last_total), int(last_count))
+        for carry, last_total, last_count in zip(
+            carries, last_of(total, frame.counts), last_of(count, frame.counts)
+        )
+    ]
+    return flight, news
 
 
 @dataclass(frozen=True)
