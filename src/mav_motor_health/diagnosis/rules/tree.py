@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = ["MIN_FLIGHT_SAMPLES", "SlowLook", "Tree", "TypicalCarry"]
 
-#: judged samples within the identified speeds before this flight's typical current counts (as many as
+#: samples counted (:func:`flight_typical`) before this flight's typical current counts (as many as
 #: identification needs to measure a motor's noise)
 MIN_FLIGHT_SAMPLES = MIN_MOTOR_SAMPLES
 
@@ -99,18 +99,19 @@ class Tree(Rule):
         fallback = np.broadcast_to(
             np.asarray(profile.stall_split(frame.bus_voltage_v), dtype=float), frame.shape
         )
-        own = profile.stall_split_typical * np.fmin(typical[:, None], flight)  # NaN flight: identification's
+        # the lower of the two; identification's where the flight has none yet, none where it has none
+        reference = np.where(np.isfinite(typical)[:, None], np.fmin(typical[:, None], flight), np.nan)
+        own = profile.stall_split_typical * reference
         return np.where(np.isfinite(own), own, fallback), carries
 
 
 def flight_typical(
     frame: Frame, carries: list[TypicalCarry]
 ) -> tuple[NDArray[np.float64], list[TypicalCarry]]:
-    """Each row's typical current of this flight up to each sample [A] (the geometric mean of its judged,
-    trusted, positive currents where its model speed is not below the speeds identification covered and
-    it turns above the tree's stop speed; NaN
-    until :data:`MIN_FLIGHT_SAMPLES` are counted, and on a motor whose noise does not give that range), and
-    the carries advanced."""
+    """Each row's typical current of this flight up to each sample [A], and the carries advanced: the
+    geometric mean of its judged, trusted, positive currents where its model speed is not below the speeds
+    identification covered and it turns above the tree's stop speed; NaN until :data:`MIN_FLIGHT_SAMPLES`
+    are counted, and on a motor whose noise does not give that range."""
     noise = frame.noise or ()
     low = np.array([n.omega_low_rad_s for n in noise], dtype=float)[:, None]
     width = frame.shape[1]
