@@ -16,7 +16,7 @@ flight's so far: the geometric mean of the motor's measured current on its judge
 (idle, the ground, a long descent) or that is stalled (below the tree's stop speed) does not count: its
 current is not the motor's typical one and would set the split too low; samples above those speeds can
 only raise this flight's figure, which the lower of the two then leaves aside. With a motor-side current
-the two agree and nothing changes.
+the two agree and the split moves little.
 """
 
 from __future__ import annotations
