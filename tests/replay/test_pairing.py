@@ -232,19 +232,58 @@ def test_command_excursions_whole_and_in_parts_are_the_brute_force(seed: int) ->
     v[rng.random(t.size) < 0.1] = np.nan
     samples = np.unique(np.concatenate([rng.uniform(-0.5, t[-1] + 0.5, 80), rng.choice(t, 10)]))
     expected = excursions_brute_force(t, v, samples)
-    whole = CommandExcursions(2).beyond_held(1, t, v, samples)
+    whole = CommandExcursions(1).beyond_held(t, v, np.zeros(samples.size, int), samples)
     np.testing.assert_allclose(whole, expected, rtol=0, atol=1e-15)
     assert (whole > 0).sum() > 20 and (whole == 0).sum() > 5  # dips and none both present
     times = np.unique(np.concatenate([t, samples]))
     free = times[~np.isin(times, t)]  # cut where no value is stamped (a sample's time, or none)
     for cuts in (rng.choice(free, 1), np.sort(rng.choice(free, 15, replace=False)), free):
-        parts = CommandExcursions(2)
+        parts = CommandExcursions(1)
         got = []
         for lo, hi in zip([-np.inf, *cuts], [*cuts, np.inf]):
             vals = (t > lo) & (t <= hi)
             sam = (samples > lo) & (samples <= hi)
-            got.append(parts.beyond_held(1, t[vals], v[vals], samples[sam]))
+            got.append(parts.beyond_held(t[vals], v[vals], np.zeros(sam.sum(), int), samples[sam]))
         np.testing.assert_allclose(np.concatenate(got), expected, rtol=0, atol=1e-15)
     # a dip between two samples whose held commands are alike: the dip's depth
-    dip = CommandExcursions(1).beyond_held(0, [0.0, 0.02, 0.04, 0.06], [0.5, 0.3, 0.4, 0.5], [0.01, 0.09])
+    dip = CommandExcursions(1).beyond_held(
+        [0.0, 0.02, 0.04, 0.06], [0.5, 0.3, 0.4, 0.5], [0, 0], [0.01, 0.09]
+    )
     np.testing.assert_allclose(dip, [0.0, 0.2])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_command_excursions_of_every_motor_in_one_call_are_each_motors_brute_force(seed: int) -> None:
+    """The live agent hands ``CommandExcursions`` every motor's commands (a column each, NaN where a
+    message carries none) and samples (in message order, motors interleaved) of a batch in one call: each
+    motor's excursions are its own brute force's, whole and in batches cut anywhere but at a command's very
+    time, motors with commands but no sample in a batch included (they carry them to their next sample)."""
+    from mav_motor_health.telemetry.assemble import CommandExcursions
+
+    rng = np.random.default_rng(300 + seed)
+    motors = int(rng.integers(2, 9))
+    t = np.cumsum(rng.choice([0.0, 0.02, 0.05], size=200, p=[0.1, 0.6, 0.3]))
+    v = rng.normal(size=(t.size, motors))
+    v[rng.random(v.shape) < rng.uniform(0.05, 0.6)] = np.nan
+    sample_t = np.sort(np.concatenate([rng.uniform(-0.3, t[-1] + 0.3, 150), rng.choice(t, 15)]))
+    sample_m = rng.integers(0, motors, sample_t.size)
+    keep = np.ones(sample_t.size, bool)  # one sample per motor and time, as an ESC message gives
+    for m in range(motors):
+        rows = np.flatnonzero(sample_m == m)
+        keep[rows[1:][np.diff(sample_t[rows]) == 0]] = False
+    sample_t, sample_m = sample_t[keep], sample_m[keep]
+    expected = np.zeros(sample_t.size)
+    for m in range(motors):
+        rows = sample_m == m
+        expected[rows] = excursions_brute_force(t, v[:, m], sample_t[rows])
+    assert (expected > 0).sum() > 20
+    times = np.unique(np.concatenate([t, sample_t]))
+    free = times[~np.isin(times, t)]
+    for cuts in ([], np.sort(rng.choice(free, 25, replace=False)), free):
+        parts = CommandExcursions(motors)
+        got = []
+        for lo, hi in zip([-np.inf, *cuts], [*cuts, np.inf]):
+            vals = (t > lo) & (t <= hi)
+            sam = np.flatnonzero((sample_t > lo) & (sample_t <= hi))
+            got.append(parts.beyond_held(t[vals], v[vals], sample_m[sam], sample_t[sam]))
+        np.testing.assert_allclose(np.concatenate(got), expected, rtol=0, atol=1e-15)

@@ -309,58 +309,85 @@ class CommandExcursions:
     batch by batch); what earlier parts left (the value held at the last sample, the values since) is
     carried, so parts whose times do not go back give what the whole gives, except that a value stamped
     at a sample's very time but coming in a later part counts for the next sample (as
-    :class:`HeldValues`, it had not come)."""
+    :class:`HeldValues`, it had not come). Every signal of a part is worked out in one pass."""
 
     def __init__(self, signals: int) -> None:
         #: each signal's value held at its last sample (NaN: none yet)
         self.held = np.full(signals, np.nan)
-        #: each signal's values since its last sample, as (lowest, highest, last); empty: none
-        self.pending: list[NDArray[np.float64]] = [np.zeros(0) for _ in range(signals)]
+        #: each signal's values since its last sample: lowest, highest, last (NaN: none)
+        self.pending = np.full((3, signals), np.nan)
 
     def beyond_held(
-        self, signal: int, value_time_s: ArrayLike, values: ArrayLike, sample_time_s: ArrayLike
+        self, value_time_s: ArrayLike, values: ArrayLike, sample_signal: ArrayLike, sample_time_s: ArrayLike
     ) -> NDArray[np.float64]:
-        """The excursion at each sample of ``signal`` (0-based; samples in increasing time), from the
-        signal's values (NaN: none in that message) with their times (increasing)."""
+        """The excursion at each sample (``sample_signal``: 0-based; each signal's samples in increasing
+        time, signals in any order), from the values (a row per time, in increasing time; a column per
+        signal; NaN: none in that message)."""
         vt = np.asarray(value_time_s, dtype=float)
-        v = np.asarray(values, dtype=float)
-        given = np.isfinite(v)
-        vt, v = vt[given], v[given]
+        signals, n = self.held.size, vt.size
+        sig = np.asarray(sample_signal, dtype=np.int64)
         st = np.asarray(sample_time_s, dtype=float)
-        pending = self.pending[signal]
-        every = np.concatenate((pending, v))
-        if st.size == 0:
-            self.pending[signal] = _lowest_highest_last(every)
-            return np.zeros(0)
-        # the values up to each sample (its own time included): those since the sample before are
-        # every[ends[k - 1]:ends[k]]
-        ends = np.searchsorted(vt, st, side="right") + pending.size
-        starts = np.concatenate(([0], ends[:-1]))
-        some = ends > starts
-        padded = np.append(every, np.nan)  # an index one past the end stays valid for reduceat
-        bounds = np.column_stack((starts, ends)).ravel()
-        if padded.size > 1:
-            lowest = np.minimum.reduceat(padded, bounds)[::2]
-            highest = np.maximum.reduceat(padded, bounds)[::2]
-        else:
-            lowest = highest = np.full(st.size, np.nan)
-        held_now = np.where(ends > 0, padded[np.maximum(ends - 1, 0)], self.held[signal])
-        held_before = np.concatenate(([self.held[signal]], held_now[:-1]))
-        with np.errstate(invalid="ignore"):
+        # the signals' values laid end to end, a NaN after each signal's (where a run of rows that ends at
+        # the part's end stops, and what a run with no row reads): row r of signal s at s·(n + 1) + r
+        flat = np.full((signals, n + 1), np.nan)
+        flat[:, :n] = np.asarray(values, dtype=float).reshape(n, signals).T
+        # per signal and row: the row of its last value up to the row before (-1: none yet, read as the NaN)
+        last_row = np.full((signals, n + 1), -1, dtype=np.int64)
+        np.maximum.accumulate(
+            np.where(np.isfinite(flat[:, :n]), np.arange(n), -1), axis=1, out=last_row[:, 1:]
+        )
+        low, high, last = self.pending
+        out = np.zeros(st.size)
+        since = np.zeros(signals, dtype=np.int64)  # each signal's first row after its last sample
+        if st.size:
+            # the samples by signal, then time (ties in the order given); each one's values are the rows
+            # from the signal's sample before (or the part's start) up to its time, its own time included
+            order = np.lexsort((st, sig))
+            s, end = sig[order], np.searchsorted(vt, st[order], side="right")
+            first = np.ones(s.size, dtype=bool)
+            first[1:] = s[1:] != s[:-1]
+            base = s * (n + 1)
+            bounds = np.empty(2 * s.size, dtype=np.int64)
+            bounds[1::2] = base + end
+            bounds[0] = base[0]
+            bounds[2::2] = np.where(first[1:], base[1:], bounds[1:-1:2])
+            bounds[0::2] = np.where(bounds[0::2] < bounds[1::2], bounds[0::2], base + n)  # no row: the NaN
+            lowest = np.fmin.reduceat(flat.ravel(), bounds)[::2]
+            highest = np.fmax.reduceat(flat.ravel(), bounds)[::2]
+            lowest = np.where(first, np.fmin(lowest, low[s]), lowest)  # with the values carried
+            highest = np.where(first, np.fmax(highest, high[s]), highest)
+            # held at each sample: the last value up to it, else the last carried since the sample before,
+            # else the one held at the sample before
+            carried = np.where(np.isnan(last[s]), self.held[s], last[s])
+            row = last_row[s, end]
+            held_now = np.where(row >= 0, flat[s, row], carried)
+            held_before = np.empty(s.size)
+            held_before[1:] = held_now[:-1]
+            held_before = np.where(first, self.held[s], held_before)
             above = highest - np.fmax(held_before, held_now)
             below = np.fmin(held_before, held_now) - lowest
-            # nothing held at the sample before (the first sample, commands only since): nothing to go beyond
-            out = np.where(some & np.isfinite(held_before), np.fmax(np.fmax(above, below), 0.0), 0.0)
-        self.held[signal] = held_now[-1]
-        self.pending[signal] = _lowest_highest_last(every[ends[-1] :])
-        return np.where(np.isfinite(out), out, 0.0)
-
-
-def _lowest_highest_last(values: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(lowest, highest, last) of some values, all that :class:`CommandExcursions` carries of them."""
-    if values.size == 0:
-        return values
-    return np.array([values.min(), values.max(), values[-1]])
+            # no value since the sample before: NaN, so 0; nothing held at the sample before (the first
+            # sample, values only since): nothing to go beyond
+            out[order] = np.where(np.isnan(held_before), 0.0, np.fmax(np.fmax(above, below), 0.0))
+            # carried: the value held at each signal's last sample; its values since start afresh
+            final = np.ones(s.size, dtype=bool)
+            final[:-1] = first[1:]
+            done = s[final]
+            self.held[done] = held_now[final]
+            low[done] = high[done] = last[done] = np.nan
+            since[done] = end[final]
+        # each signal's values after its last sample (all of them for a signal with none) join what it carries
+        after = np.empty(2 * signals, dtype=np.int64)
+        after[0::2] = np.arange(signals) * (n + 1) + since
+        after[1::2] = after[0::2] - since + n
+        after[0::2] = np.where(since < n, after[0::2], after[1::2])
+        if n:
+            low[:] = np.fmin(low, np.fmin.reduceat(flat.ravel(), after)[::2])
+            high[:] = np.fmax(high, np.fmax.reduceat(flat.ravel(), after)[::2])
+            row = last_row[np.arange(signals), n]
+            fresh = row >= since
+            last[fresh] = flat[fresh, row[fresh]]
+        return out
 
 
 def _search_right(t_source: NDArray[np.float64], t_target: NDArray[np.float64]) -> NDArray[np.int64]:
@@ -559,7 +586,9 @@ def motor_table(
     for m, series in commands.items():
         sel = np.flatnonzero((motors == m) & measured)
         if sel.size:
-            excursion[sel] = CommandExcursions(1).beyond_held(0, series[0], series[1], time_s[sel])
+            excursion[sel] = CommandExcursions(1).beyond_held(
+                series[0], series[1], np.zeros(sel.size), time_s[sel]
+            )
     interval = None
     if stamped_by_message:
         interval = MessageIntervals(int(motors.max(initial=0))).since_previous(time_s, motors - 1)

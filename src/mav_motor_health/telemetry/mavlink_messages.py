@@ -551,19 +551,13 @@ class SamplePairing:
         )
         # how far each motor's commands went beyond the two held ones since its sample before; a motor
         # with commands but no sample in this part carries them to its next sample
-        excursion = np.zeros(len(time_s))
-        command_time = np.asarray(reading.command_time_s, dtype=float)
         commanded = throttle.ndim == 2 and throttle.shape[0] > 0
-        with_commands = (
-            np.flatnonzero(np.isfinite(throttle).any(axis=0)) + 1 if commanded else np.zeros(0, int)
+        excursion = self.excursions.beyond_held(
+            np.asarray(reading.command_time_s, dtype=float)[: len(throttle)] if commanded else np.zeros(0),
+            throttle if commanded else np.zeros((0, MAX_MOTORS)),
+            motor - 1,
+            time_s,
         )
-        for m in np.union1d(motor, with_commands).astype(int).tolist():
-            rows = np.flatnonzero(motor == m)
-            rows = rows[np.argsort(time_s[rows], kind="stable")]  # a reading's rows: by ESC slot first
-            given = throttle[:, m - 1] if commanded else np.zeros(0)
-            excursion[rows] = self.excursions.beyond_held(
-                m - 1, command_time[: len(given)], given, time_s[rows]
-            )
         battery, _ = self.battery.hold(
             reading.battery_time_s,
             np.stack((reading.battery_voltage_v, reading.battery_current_a), axis=-1),
