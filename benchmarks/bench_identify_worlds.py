@@ -25,7 +25,9 @@ with commands (``pairing_s``) and the share of current readings at exactly 0 (an
 current). Beside it, the same balance on the simulator's own record of the flight, where each ESC report
 carries the duty of its own instant (``k_e paired``, ``R paired``): the same reports, readings and bins,
 no pairing. What the log's pairing adds is the difference; what is left is the readings' own doing (their
-noise, averaging and the missing negative current).
+noise, averaging and the missing negative current). Last (``k_e share``), k_e from the motor voltage over
+the speed less the winding's typical share at the true idle offset (``back_emf_share_at``): what
+identification takes where the current does not part R from k_e, without the idle offset's error.
 
 The default worlds 1000-1019 are not the worlds 0-19 used while developing the identification: report
 figures from these.
@@ -50,7 +52,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from mav_motor_health.identification import identify_logs  # noqa: E402
-from mav_motor_health.model.identify import electrical_balance_at  # noqa: E402
+from mav_motor_health.model.identify import back_emf_share_at, electrical_balance_at  # noqa: E402
 from mav_motor_health.sim.engine import SimRecord, run_scenario  # noqa: E402
 from mav_motor_health.sim.scenario import world_scenario  # noqa: E402
 from mav_motor_health.sim.worlds import World, draw_world  # noqa: E402
@@ -148,6 +150,11 @@ def balance_at_truth(path: Path, world: World, record: SimRecord) -> dict[str, f
         "pairing_s": float(table.meta.get("pairing_s") or math.nan),
         "zero": float(np.mean(reading[np.isfinite(reading)] == 0.0)),
     }
+    # k_e from the motor voltage over the speed less the winding's typical share, at the true offset: what
+    # identification takes where the current does not part R from k_e, with no idle offset error in it
+    shares = back_emf_share_at(table, world.esc.idle_offset)
+    if shares:
+        out["k_e_share"] = statistics.median(shares.values()) / world.motor.k_e - 1.0
     if world.current.side == "unusable":
         return out
     columns = record.esc_columns()
@@ -228,7 +235,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(
         f"{'world':>6}{'side':>9}{'k_e':>9}{'R_ohm':>9}{'k_e paired':>12}{'R paired':>10}"
-        f"{'jitter':>9}{'pairing':>10}{'zero':>8}"
+        f"{'jitter':>9}{'pairing':>10}{'zero':>8}{'k_e share':>11}"
     )
     for r in results:
         a = r.at_truth
@@ -245,8 +252,17 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"{r.seed:>6}{r.side_true:>9}{cells}{a['jitter']:>9.3f}{1000 * a['pairing_s']:>8.0f}ms"
             f"{100 * a['zero']:>7.1f}%"
+            + (
+                f"{100 * a['k_e_share']:>+10.1f}%"
+                if math.isfinite(a.get("k_e_share", math.nan))
+                else f"{'-':>11}"
+            )
         )
-    for key, what in (("k_e", "from the log"), ("k_e_paired", "each report with its own duty")):
+    for key, what in (
+        ("k_e", "from the log"),
+        ("k_e_paired", "each report with its own duty"),
+        ("k_e_share", "the motor voltage over the speed less the winding's typical share (every world)"),
+    ):
         kes = [abs(r.at_truth[key]) for r in results if math.isfinite(r.at_truth.get(key, math.nan))]
         if kes:
             print(

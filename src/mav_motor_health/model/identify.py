@@ -77,6 +77,7 @@ __all__ = [
     "CurrentReading",
     "EscMap",
     "Identification",
+    "back_emf_share_at",
     "battery_current_pairs",
     "electrical_balance_at",
     "gain_from_pairs",
@@ -93,6 +94,20 @@ SIBLING_DEPARTURE = 0.15
 MIN_COMMAND = 0.05
 #: the prior's width for B·ω and T_f: this share of the load torque at the flight's median speed
 PRIOR_SHARE = 0.02
+#: where the flight does not part R from k_e, the share of the motor voltage the winding's resistance takes at
+#: the flight's loads (R·i over d·V, dimensionless): about a tenth for a multirotor motor at its hover load
+#: (the paper's motor, Table I, at its 3.8 A hover: 9.6 %; the DTU stand's MultiStar 3508-700KV, R 0.083 Ω,
+#: with its 14x5.5 propeller at the DTU hexacopter's hover thrust: about 12 %); docs/model.md, "Where the
+#: current does not part R from k_e"
+COPPER_SHARE = 0.10
+#: the current parts R from k_e where, the speed taken out, it follows the motor voltage with at least this
+#: partial correlation over the flight's bins (its square: half the variance). Below it most of what is
+#: left is noise, and the commands' pairing error (in the voltage, while the current follows the duty of
+#: its own instant) pulls the other way: least squares puts R near its bound and k_e high by about the
+#: winding's share (docs/model.md, "Where the current does not part R from k_e"; dimensionless)
+R_PARTIAL_CORRELATION_MIN = 0.7
+#: the idle offsets the speed-only search (no usable current) looks in, of the command range
+SPEED_ONLY_OFFSET_RANGE = (-0.05, 0.3)
 #: the balances' bins span at least this many pairing intervals of the log (dimensionless)
 PAIRING_BINS = 4.0
 #: an idle offset less certain than this (of the command range) is not taken from the data
@@ -172,7 +187,7 @@ class Identification:
     esc: EscMap
     current: CurrentReading
     stderr: Mapping[str, float]
-    determined_by: Mapping[str, str]  # parameter -> "data" or "prior"
+    determined_by: Mapping[str, str]  # parameter -> "data", "prior" or "data and prior"
     k_bic: Mapping[float, float]  # candidate k -> BIC of the mechanical fit
     deviations: Mapping[int, Mapping[str, float]]  # motor -> parameter -> relative departure from the type
     noise: Mapping[int, Mapping[str, float]]  # motor -> residual std of the balances
@@ -276,6 +291,47 @@ def _ke_given_r(terms: _ElectricalTerms, c0: float, side: str, r_ohm: float) -> 
     rest = y[good] - r_ohm * x_r[good]
     denominator = float(np.sum(x_ke[good] ** 2))
     return max(float(np.sum(rest * x_ke[good]) / denominator), 1e-7) if denominator > 0 else math.nan
+
+
+def current_partial_correlation(terms: _ElectricalTerms, c0: float, side: str) -> float:
+    """How well the reading follows the motor voltage once the speed is taken out: the partial correlation
+    of the balance's current term with its voltage term given its speed term, over the weighted bins
+    (NaN where there are too few). Near 1 the current parts R from k_e; near 0 it says nothing of R."""
+    y, a, weight = terms.weighted_rows(c0, side)
+    ok = (weight > 0) & np.isfinite(y) & np.isfinite(a).all(axis=1)
+    if ok.sum() < 10:
+        return math.nan
+    y, x_ke, x_r = y[ok], a[ok, 0], a[ok, 1]
+    denominator = float(x_ke @ x_ke)
+    if denominator <= 0:
+        return math.nan
+    rest_y = y - x_ke * float(y @ x_ke) / denominator
+    rest_r = x_r - x_ke * float(x_r @ x_ke) / denominator
+    scale = math.sqrt(float(rest_y @ rest_y) * float(rest_r @ rest_r))
+    return float(rest_y @ rest_r) / scale if scale > 0 else math.nan
+
+
+def _ke_from_share(m: _MotorData, esc: EscMap, share: float) -> tuple[float, float]:
+    """k_e where the current does not part R from it: the back-EMF takes ``1 − share`` of the motor voltage
+    at the flight's loads, ``k_e = (1 − share)·Σ(d·V_bus·ω)/Σω²`` over the motor's samples. Sums over the
+    whole flight, linear in the duty: the commands' pairing error (zero-mean) averages out, and no current
+    reading enters (neither its side, gain nor the duty ripple an input-side reading carries). Also its
+    standard error from the data alone (the ratio's scatter, samples taken as independent): what tells one
+    motor from its siblings, which share the same ``share``; the share's own uncertainty is not in it."""
+    dv = esc.duty(m.command) * m.bus_v
+    w2 = float(np.sum(m.omega**2))
+    ratio = float(np.sum(dv * m.omega)) / w2
+    scatter = float(np.sum((dv - ratio * m.omega) ** 2)) / max(m.omega.size - 1, 1)
+    return (1.0 - share) * ratio, (1.0 - share) * math.sqrt(scatter / w2)
+
+
+def _r_from_share(terms: _ElectricalTerms, c0: float, side: str, share: float) -> float:
+    """R (in the reading's units, R/g) that takes ``share`` of the motor voltage at the flight's loads:
+    ``share·Σ⟨d·V⟩/Σ⟨i⟩`` over the weighted bins (the balance's own terms, either side)."""
+    y, a, weight = terms.weighted_rows(c0, side)
+    ok = (weight > 0) & np.isfinite(y) & np.isfinite(a[:, 1])
+    current = float(np.sum(a[ok, 1]))
+    return share * float(np.sum(y[ok])) / current if current > 0 else math.nan
 
 
 def _usable_current(terms: _ElectricalTerms) -> bool:
@@ -530,8 +586,15 @@ def identify(
     bin_s: float = 0.25,
     k: float | None = None,
     name: str = "identified motor",
+    copper_share: float | None = COPPER_SHARE,
 ) -> Identification:
     """Identify the vehicle in ``table`` (a healthy flight); ``prior`` fills what the data cannot say.
+
+    Where the current does not part R from k_e (:func:`current_partial_correlation` below
+    :data:`R_PARTIAL_CORRELATION_MIN`, or R on its bound), and where the ESCs report no usable current,
+    k_e is the motor voltage over the speed with ``copper_share`` taken off for the winding, and R the
+    resistance that takes that share at this flight's current; with ``copper_share`` None (a prior the user
+    gave: a bench fit of the motor) R is the prior's and k_e is fitted with it.
 
     The balances' time bins are at least :data:`PAIRING_BINS` times the log's pairing of ESC samples
     with commands (``pairing_s`` in the table's meta, where the reader measured it), so that a command
@@ -585,31 +648,78 @@ def identify(
     else:
         side, residual_v = "unusable", {}
         c0 = _speed_only_offset(data, prior)
-        findings.append("the ESCs report no usable current: R is the prior's, the current is not judged")
+        findings.append(
+            "the ESCs report no usable current: R is the prior's, the current is not judged"
+            + (
+                f"; k_e is the motor voltage over the speed with the winding's typical share "
+                f"({100 * copper_share:.0f} %) taken off"
+                if copper_share is not None
+                else ""
+            )
+        )
     offset_from = "data"
+    if side == "unusable" and min(abs(c0 - b) for b in SPEED_ONLY_OFFSET_RANGE) < 1e-3:
+        c0, offset_from = 0.0, "prior"
+        findings.append(
+            "the speeds do not determine the ESC's idle offset (the search ended on its bound): taken as 0, "
+            "the autopilot's PWM range"
+        )
+    # whether the current parts R from k_e on this flight: the motors' median partial correlation at the
+    # balance's own idle offset
+    partial = [
+        current_partial_correlation(terms[m.motor], c0, side)
+        for m in data
+        if side != "unusable" and usable.get(m.motor)
+    ]
+    partial_r = float(np.nanmedian(partial)) if np.isfinite(partial).any() else math.nan
+    parted = bool(partial_r >= R_PARTIAL_CORRELATION_MIN)
     if side != "unusable" and not c0_stderr <= IDLE_OFFSET_STDERR_MAX:
         c0, offset_from = 0.0, "prior"
         findings.append(
             "the flight does not determine the ESC's idle offset (the commands moved too little at a "
             "steady battery voltage): taken as 0, the autopilot's PWM range; fly climbs, descents and yaw"
         )
+    elif side != "unusable" and not parted and copper_share is not None:
+        # the offset came from the same balance, whose R went where the pairing, not the load, put it:
+        # with k_e from the winding's share it would be half of a pair fitted together (it trades off
+        # with k_e), and extrapolates wrongly where the flight did not go
+        c0, offset_from = 0.0, "prior"
+        findings.append(
+            "the balance that gave the ESC's idle offset does not part R from k_e (below): the offset is "
+            "taken as 0, the autopilot's PWM range"
+        )
     esc = EscMap(idle_offset=c0)
     per_motor_e: dict[int, tuple[float, float]] = {}
     per_motor_err: dict[int, tuple[float, float]] = {}
     noise: dict[int, dict[str, float]] = {}
+    r_share: dict[int, float] = {}  # R/g where the data do not give it: the copper share's
     for m in data:
         if side != "unusable" and usable.get(m.motor):
             coef, err_e, resid = _electrical_fit(terms[m.motor], c0, side)
-            # R at its bound says the current did not part R from k_e here: not a zero resistance
-            r_fit = float(coef[1]) if coef[1] > 1e-9 else math.nan
-            k_e_fit = (
-                float(coef[0]) if math.isfinite(r_fit) else _ke_given_r(terms[m.motor], c0, side, prior.R_ohm)
-            )
+            # R at its bound, or a current that does not follow the voltage, says the current did not
+            # part R from k_e here: not a zero resistance
+            r_fit = float(coef[1]) if coef[1] > 1e-9 and parted else math.nan
+            if not math.isfinite(r_fit) and copper_share is not None:
+                share_r = _r_from_share(terms[m.motor], c0, side, copper_share)
+                if math.isfinite(share_r) and share_r > 0:
+                    r_share[m.motor] = share_r
+            k_e_err = float(err_e[0])
+            if math.isfinite(r_fit):
+                k_e_fit = float(coef[0])
+            elif copper_share is not None:
+                k_e_fit, k_e_err = _ke_from_share(m, esc, copper_share)
+            else:
+                k_e_fit = _ke_given_r(terms[m.motor], c0, side, prior.R_ohm)
             per_motor_e[m.motor] = (k_e_fit, r_fit)
-            per_motor_err[m.motor] = (float(err_e[0]), float(err_e[1]))
+            per_motor_err[m.motor] = (k_e_err, float(err_e[1]))
             noise[m.motor] = {"voltage_v": _rms(resid)}
         else:
-            per_motor_e[m.motor] = (_speed_only_ke(m, esc, prior), math.nan)
+            k_e_speed = (
+                _ke_from_share(m, esc, copper_share)[0]
+                if copper_share is not None
+                else _speed_only_ke(m, esc, prior)
+            )
+            per_motor_e[m.motor] = (k_e_speed, math.nan)
             per_motor_err[m.motor] = (math.nan, math.nan)
             noise[m.motor] = {}
     gain_fit = _battery_gain(data, table, side, esc) if side != "unusable" else None
@@ -622,13 +732,36 @@ def identify(
     gain, offset, gain_from = (1.0, 0.0, "assumed") if gain_fit is None else (*gain_fit, "battery")
     k_e_type = float(np.median([v[0] for v in per_motor_e.values()]))
     r_values = [v[1] * gain for v in per_motor_e.values() if math.isfinite(v[1])]
-    r_type = float(np.median(r_values)) if r_values else prior.R_ohm
+    # R where the data did not give it: the share's (or the prior's) in ohms, the reading's gain applied
+    r_ohm_assumed = {mo: r * gain for mo, r in r_share.items()}
+    if r_values:
+        r_type = float(np.median(r_values))
+    elif r_ohm_assumed:
+        r_type = float(np.median(list(r_ohm_assumed.values())))
+    else:
+        r_type = prior.R_ohm
     if not r_values and side != "unusable":
-        findings.append(
-            "the current did not part R from k_e (R at its bound on every motor): R is the prior's"
+        told = (
+            f"the speed taken out, it follows the motor voltage with a partial correlation of only "
+            f"{partial_r:.2f} < {R_PARTIAL_CORRELATION_MIN:g}: too little of what moves it is the load's, "
+            "as in a flight of little load change or with commands paired loosely with the ESC reports"
+            if not parted
+            else "R at its bound on every motor"
         )
+        if copper_share is not None and r_ohm_assumed:
+            findings.append(
+                f"the current did not part R from k_e ({told}): k_e is the motor voltage over the speed "
+                f"with {100 * copper_share:.0f} % taken off for the winding (a multirotor motor's typical "
+                "share at its flight loads), and R the resistance that takes that share at this flight's "
+                "current; give a bench fit of the motor with --prior for its own R"
+            )
+        else:
+            findings.append(f"the current did not part R from k_e ({told}): R is the prior's")
     # mechanical: each candidate k over all motors with their own electrical constants
-    motors_r = {mo: (v[1] * gain if math.isfinite(v[1]) else r_type) for mo, v in per_motor_e.items()}
+    motors_r = {
+        mo: (v[1] * gain if math.isfinite(v[1]) else r_ohm_assumed.get(mo, r_type))
+        for mo, v in per_motor_e.items()
+    }
     w_typ = float(np.median(np.concatenate([m.omega for m in data])))
     load = prior.C_p * w_typ**prior.k + prior.B * w_typ + prior.T_f
     candidates = (k,) if k is not None else K_CANDIDATES
@@ -685,11 +818,14 @@ def identify(
     c_p, b, t_f, inertia = (float(v) for v in x)
     determined = {
         "idle_offset": offset_from,
-        "R_ohm": "prior"
-        if not r_values
-        else ("data" if gain_from == "battery" else "data (x current gain)")
-        + (f" as for the {side} side (a guess)" if guessed else ""),
-        "k_e": "data",
+        # R from the copper share is still read through the current (its side and gain): the guess says so
+        "R_ohm": (
+            "prior" if not r_values else ("data" if gain_from == "battery" else "data (x current gain)")
+        )
+        + (f" as for the {side} side (a guess)" if guessed and (r_values or r_ohm_assumed) else ""),
+        # without a current that parts R from it, k_e is the motor voltage over the speed less the
+        # winding's typical share: the data's ratio, the prior's share
+        "k_e": "data" if r_values else ("data and prior" if copper_share is not None else "data"),
         "C_p": "data",
         "B": "data" if err[1] < 0.5 * PRIOR_SHARE * load / w_typ else "prior",
         "T_f": "data" if err[2] < 0.5 * PRIOR_SHARE * load else "prior",
@@ -703,7 +839,7 @@ def identify(
     per_motor = {}
     deviations = {}
     for mo, (ke, rr) in per_motor_e.items():
-        r_m = rr * gain if math.isfinite(rr) else r_type
+        r_m = rr * gain if math.isfinite(rr) else r_ohm_assumed.get(mo, r_type)
         per_motor[mo] = params.replace(R_ohm=r_m, k_e=ke, name=f"{name}, motor {mo}")
         deviations[mo] = {"k_e": ke / k_e_type - 1.0, "R_ohm": r_m / r_type - 1.0}
         # a departure counts where it is large and the motor's own fit is sure of it (3 standard errors)
@@ -769,6 +905,17 @@ def electrical_balance_at(
     return out
 
 
+def back_emf_share_at(
+    table: TelemetryTable, idle_offset: float, *, share: float = COPPER_SHARE
+) -> dict[int, float]:
+    """Each motor's k_e from the motor voltage over the speed with ``share`` taken off for the winding
+    (what :func:`identify` takes where the current does not part R from k_e), at a *given* idle offset:
+    with the truth's offset it measures what the rule itself makes of a log
+    (``benchmarks/bench_identify_worlds.py``)."""
+    esc = EscMap(idle_offset=idle_offset)
+    return {m.motor: _ke_from_share(m, esc, share)[0] for m in _motor_data(table, 0.25)}
+
+
 def _rms(values: FloatArray) -> float:
     good = np.isfinite(values)
     return float(np.sqrt(np.mean(values[good] ** 2))) if good.any() else math.nan
@@ -799,5 +946,5 @@ def _speed_only_offset(data: Sequence[_MotorData], prior: MotorParams) -> float:
             total += float(np.mean((esc.duty(m.command) * m.bus_v - ke * m.omega) ** 2))
         return total
 
-    found = minimize_scalar(cost, bounds=(-0.05, 0.3), method="bounded")
+    found = minimize_scalar(cost, bounds=SPEED_ONLY_OFFSET_RANGE, method="bounded")
     return float(found.x)
