@@ -130,8 +130,11 @@ def test_where_the_current_does_not_part_r_from_k_e_the_winding_s_typical_share_
     assert len(said) == 1 and "partial correlation of only" in said[0] and "10 %" in said[0]
     # R is then the winding's share at the flight's loads (the reading's gain from the battery applied)
     assert 0 < result.params.R_ohm < 2 * world.motor.R_ohm
-    # a prior the user gives (a bench fit of the motor) keeps its own R instead of the share
-    given = identify(table, load_motor_params(), copper_share=None)
+    # a prior the user gives (`fit --prior`, a bench fit of the motor) keeps its own R instead of the share
+    from mav_motor_health.identification import identify_logs
+
+    prior_file = Path(__file__).resolve().parents[1] / "params" / "motors" / "paper_x2212.toml"
+    given = identify_logs([tmp_path / "world1.tlog"], prior=prior_file).found
     assert any("R is the prior's" in f for f in given.findings)
     assert given.params.R_ohm == load_motor_params().R_ohm
 

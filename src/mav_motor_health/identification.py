@@ -126,7 +126,9 @@ def identify_logs(
     )
     if prior is not None:
         prior_params = load_motor_params(prior)
-        found = identify(joined, prior_params, k=k, name=label)
+        # a prior the user gives (a bench fit of the motor) keeps its own R where the flight cannot part
+        # R from k_e, instead of the winding's typical share
+        found = identify(joined, prior_params, k=k, name=label, copper_share=None)
         prior_text = f"{prior} (given)"
     else:
         # first pass: the bundled motor sets only the scales; second: this vehicle's own first estimate
