@@ -376,11 +376,12 @@ class CommandExcursions:
             self.held[done] = held_now[final]
             low[done] = high[done] = last[done] = np.nan
             since[done] = end[final]
-        # each signal's values after its last sample (all of them for a signal with none) join what it carries
+        # each signal's values after its last sample (all of them for a signal with none) join what it
+        # carries: the rows from ``since`` to its NaN (the NaN alone where there are none)
+        nan_at = np.arange(signals) * (n + 1) + n
         after = np.empty(2 * signals, dtype=np.int64)
-        after[0::2] = np.arange(signals) * (n + 1) + since
-        after[1::2] = after[0::2] - since + n
-        after[0::2] = np.where(since < n, after[0::2], after[1::2])
+        after[0::2] = np.where(since < n, nan_at - n + since, nan_at)
+        after[1::2] = nan_at
         if n:
             low[:] = np.fmin(low, np.fmin.reduceat(flat.ravel(), after)[::2])
             high[:] = np.fmax(high, np.fmax.reduceat(flat.ravel(), after)[::2])
