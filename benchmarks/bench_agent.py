@@ -2,6 +2,7 @@
 baselines in the same run.
 
     PYTHONPATH=src python benchmarks/bench_agent.py [--seconds 60] [--live-seconds 10] [--rates 50 200]
+        [--vehicle bundled|per-motor]
 
 1. **CPU per sample** (replay of a synthetic six-motor flight at each rate, written as a .tlog, through
    the agent's real feeding path: reader thread, MAVLink parsing, SampleAssembler, HealthMonitor → the
@@ -12,6 +13,11 @@ baselines in the same run.
    rate, with the default ``batch_s`` (0.1 s) and with ``batch_s`` = 0.02 s; the agent process's CPU
    share of one core over the run, and latency from a sample's arrival (reader thread) to its diagnosis,
    and from fault onset in the vehicle to the STATUSTEXT back at the vehicle.
+``--vehicle per-motor`` gives the agent a vehicle file with a model per motor, as ``fit`` writes one (the
+bundled motor with R up to 2.5 % and k_e up to 0.25 % apart between the motors: small enough that the test
+vehicle, which flies the bundled motor, stays healthy; the core's work does not depend on the values),
+instead of the bundled motor itself: the case of a user who identified the vehicle.
+
 3. **Raspberry Pi 4 estimate**: the same run times the benchmarks-game n-body program in pure Python; a
    Raspberry Pi 4 at 1.5 GHz takes 158.3 s for 5,000,000 steps (chaitanyamehta.github.io, "Performance
    Analysis of Languages on Raspberry Pi", performance governor). The ratio of that to this machine's
@@ -40,8 +46,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests" / "agent"))  # the test vehicle (peer.py)
 
 from mav_motor_health.agent import Agent, load_agent_config  # noqa: E402
-from mav_motor_health.config import load_motor_params  # noqa: E402
+from mav_motor_health.config import dump_vehicle_params, load_motor_params  # noqa: E402
 from mav_motor_health.model.equations import steady_state  # noqa: E402
+from mav_motor_health.model.vehicle import VehicleParams  # noqa: E402
 from mav_motor_health.publish import dialect  # noqa: E402
 
 PI4_NBODY_S = 158.263  # 5,000,000 steps, Raspberry Pi 4 @ 1.5 GHz, performance governor (see docstring)
@@ -50,6 +57,19 @@ MOTORS = 6
 #: batch_s values timed in the replay part, per rate (one sample per core call is too slow to time at 200 Hz)
 BATCHES = {50.0: (0.0, 0.02, 0.05, 0.1, 0.2), 200.0: (0.02, 0.1)}
 LIVE_BATCHES = (0.1, 0.02)
+#: the vehicle file the agent is given (--vehicle per-motor), None: the bundled motor
+VEHICLE: str | None = None
+
+
+def write_per_motor_vehicle(path: Path) -> str:
+    """A vehicle file with each motor's own model: the bundled motor's R and k_e a little apart."""
+    motor = load_motor_params("paper_x2212")
+    per_motor = {
+        m: motor.replace(R_ohm=motor.R_ohm * (1 + 0.01 * (m - 3.5)), k_e=motor.k_e * (1 + 0.001 * (m - 3.5)))
+        for m in range(1, MOTORS + 1)
+    }
+    path.write_text(dump_vehicle_params(VehicleParams(motor=motor, per_motor=per_motor)), encoding="utf-8")
+    return str(path)
 
 
 # -- 1. a synthetic flight as a .tlog ----------------------------------------------------------------
@@ -100,7 +120,7 @@ def parse_only(path: Path) -> tuple[float, int]:
 
 
 def agent_replay(path: Path, batch_s: float) -> tuple[float, int]:
-    config = load_agent_config(None, connect=str(path), profile="flight")
+    config = load_agent_config(None, connect=str(path), params=VEHICLE, profile="flight")
     config = config.with_overrides(batch_s=batch_s)
     dialect.load()
 
@@ -149,7 +169,7 @@ def live(seconds: float, rate_hz: float, batch_s: float) -> dict[str, float]:
     detect: list[float] = []
 
     async def main() -> tuple[float, float]:
-        config = load_agent_config(None, connect=f"udpout:127.0.0.1:{port}", profile="flight")
+        config = load_agent_config(None, connect=f"udpout:127.0.0.1:{port}", params=VEHICLE, profile="flight")
         # the test vehicle's ESCs report at the stream rate: ask for rate_hz to diagnose 6 × rate_hz samples
         # (the agent's default asks for 200 Hz, which with ESCs reporting at 10–50 Hz adds only parsing)
         config = config.with_overrides(esc_rate_hz=rate_hz, batch_s=batch_s)
@@ -249,10 +269,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--live-seconds", type=float, default=10.0, help="length of each live run")
     ap.add_argument("--rates", type=float, nargs="+", default=[50.0, 200.0], help="ESC rates [Hz]")
     ap.add_argument("--nbody-steps", type=int, default=300_000)
+    ap.add_argument(
+        "--vehicle",
+        choices=("bundled", "per-motor"),
+        default="bundled",
+        help="the bundled motor, or a vehicle file with a model per motor (as fit writes)",
+    )
     args = ap.parse_args(argv)
+    global VEHICLE
+    keep = tempfile.TemporaryDirectory()
+    if args.vehicle == "per-motor":
+        VEHICLE = write_per_motor_vehicle(Path(keep.name) / "vehicle.toml")
 
     print(
-        f"python {sys.version.split()[0]} on {sys.platform}; flights of {args.seconds:.0f} s, {MOTORS} motors"
+        f"python {sys.version.split()[0]} on {sys.platform}; flights of {args.seconds:.0f} s, {MOTORS} motors;"
+        f" vehicle: {args.vehicle}"
     )
     replay: dict[tuple[float, float], float] = {}
     parse: dict[float, float] = {}

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from mav_motor_health.errors import ConfigError
 from mav_motor_health.model import MotorParams, current_from_speed, steady_state, voltage_from_current_speed
+from mav_motor_health.model.params import MotorRows, same_type
 
 motors = st.builds(
     MotorParams,
@@ -96,3 +97,40 @@ def test_at_the_start_voltage_itself_the_motor_stands_still() -> None:
     )
     sol = steady_state(params, np.array([params.start_voltage_v, np.nextafter(params.start_voltage_v, 0)]))
     assert np.all(sol.omega_rad_s == 0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    motors,
+    st.lists(st.tuples(st.floats(0.8, 1.25), st.floats(0.9, 1.1)), min_size=2, max_size=6),
+    st.lists(st.floats(0.0, 60.0) | st.just(float("nan")), min_size=1, max_size=12),
+)
+def test_motor_rows_solve_each_motor_as_its_own_model(
+    params: MotorParams, scales: list[tuple[float, float]], volts: list[float]
+) -> None:
+    """Several motors of one type in one call (MotorRows: R and k_e per row, as the live agent diagnoses
+    identification's per-motor models together) give each row what its motor's own model gives: the
+    standing-still test, the closed forms and the Newton steps are elementwise."""
+    models = [params.replace(R_ohm=params.R_ohm * r, k_e=params.k_e * e) for r, e in scales]
+    rows = MotorRows.of(models)
+    v = np.tile(np.array(volts), (len(models), 1))
+    v[:, ::2] *= 0.97  # not the same voltages on every row
+    v = v * np.linspace(1.0, 1.05, len(models))[:, None]
+    together = steady_state(rows, v)
+    for r, model in enumerate(models):
+        alone = steady_state(model, v[r])
+        np.testing.assert_allclose(together.omega_rad_s[r], alone.omega_rad_s, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(together.current_a[r], alone.current_a, rtol=1e-12, atol=1e-12)
+        # the closed forms (k = 1, 2, 3) take no data-dependent number of steps: the same bits
+        if params.k in (1, 2, 3):
+            np.testing.assert_array_equal(together.omega_rad_s[r], alone.omega_rad_s)
+
+
+def test_motor_rows_are_only_of_one_type(paper_motor: MotorParams) -> None:
+    """One model for every row is that model; models that differ beyond R and k_e are refused."""
+    assert MotorRows.of([paper_motor, paper_motor]) is paper_motor
+    assert same_type(paper_motor, paper_motor.replace(R_ohm=0.2, k_e=0.01, name="motor 2"))
+    other = paper_motor.replace(C_p=2 * paper_motor.C_p)
+    assert not same_type(paper_motor, other)
+    with pytest.raises(ValueError, match="beyond R and k_e"):
+        MotorRows.of([paper_motor, other])

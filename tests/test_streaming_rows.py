@@ -7,18 +7,22 @@ missing samples and six ESCs reporting at their own rates is fed in random chunk
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from mav_motor_health.config import load_profile
+from mav_motor_health.diagnosis import pipeline
 from mav_motor_health.diagnosis.noise import BandNoise, EquationNoise
 from mav_motor_health.diagnosis.pipeline import MotorBatch, StreamingDiagnoser, diagnose_motor
 from mav_motor_health.diagnosis.plausibility import CurrentSumCheck, PlausibilityRule
 from mav_motor_health.diagnosis.rules import tree as tree_rules
 from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.diagnosis.vehicle_check import VehicleCheck, VehicleCheckRule
+from mav_motor_health.model.params import MotorParams
 from mav_motor_health.telemetry import sources
 
 #: motor 1 stalls at 30 s
@@ -71,11 +75,33 @@ def assert_same(got: dict[str, np.ndarray], want: dict[str, np.ndarray], motor: 
             )
 
 
+def per_motor_models(paper_motor: MotorParams, motors: Iterable[int]) -> dict[int, MotorParams]:
+    """Each motor its own R and k_e, as identification's per-motor models give (a few per cent apart)."""
+    return {
+        m: paper_motor.replace(
+            R_ohm=paper_motor.R_ohm * (1.0 + 0.04 * (m - 3.5)),
+            k_e=paper_motor.k_e * (1.0 + 0.015 * (m - 3.5)),
+            name=f"motor {m}",
+        )
+        for m in motors
+    }
+
+
+@pytest.mark.parametrize("models", ["one model", "per-motor models"])
 @pytest.mark.parametrize("profile_name", ["flight", "flight_dynamic", "testbed", "flight_vehicle"])
 def test_motors_in_one_call_give_what_one_call_per_motor_gives(
-    paper_motor, motors, profile_name, monkeypatch
+    paper_motor, motors, profile_name, models, monkeypatch
 ) -> None:
     profile = load_profile(profile_name)
+    params = paper_motor if models == "one model" else per_motor_models(paper_motor, motors)
+    calls = []  # the core calls update_motors makes: one for all motors, whether or not each has its model
+    start_motors = pipeline.start_motors
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        calls.append(args[2].shape[0])  # the rows: the motors in the call
+        return start_motors(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "start_motors", counted)
     rng = np.random.default_rng(7)
     # bands from each motor's own noise (flight_vehicle): every motor a different one, so that a row
     # given another motor's noise would show; the torque balance's too, half of them read through the
@@ -96,8 +122,8 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
         )
         for m in motors
     }
-    one_by_one = StreamingDiagnoser(paper_motor, profile, list(motors), noise)
-    together = StreamingDiagnoser(paper_motor, profile, list(motors), noise)
+    one_by_one = StreamingDiagnoser(params, profile, list(motors), noise)
+    together = StreamingDiagnoser(params, profile, list(motors), noise)
     position = dict.fromkeys(motors, 0)
     parts_one: dict[int, list] = {m: [] for m in motors}
     parts_all: dict[int, list] = {m: [] for m in motors}
@@ -125,8 +151,10 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
                     extra_flags=b.extra_flags,
                 )
             )
+        calls.clear()
         for m, cols in together.update_motors(batches).items():
             parts_all[m].append(cols)
+        assert calls == ([len(batches)] if batches else []), "one core call for every motor"
     for m, cols in motors.items():
         alone = {name: np.concatenate([p[name] for p in parts_one[m]]) for name in parts_one[m][0]}
         rows = {name: np.concatenate([p[name] for p in parts_all[m]]) for name in parts_all[m][0]}
@@ -138,7 +166,7 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
             # the agent's states may differ from replay's by a sample (reported in issue 18's notes)
             continue
         whole, _ = diagnose_motor(
-            paper_motor,
+            params if isinstance(params, MotorParams) else params[m],
             profile,
             cols["time_s"],
             cols["voltage_v"],

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..model.params import MotorParams
+from ..model.params import MotorParams, MotorRows, same_type
 from ..telemetry.table import TelemetryTable
 from .noise import BandNoise, require_noise
 from .plausibility import CurrentSumCheck, SensorIssue
@@ -738,6 +738,8 @@ class StreamingDiagnoser:
         if profile.noise_bands > 0:  # refused now, not at the first sample in flight
             require_noise(self.noise, list(motors), profile.name)
         self.carries: dict[int, MotorCarry] = {}
+        #: the models of motors diagnosed in one call, as rows (:class:`~..model.params.MotorRows`)
+        self._rows: dict[tuple[int, ...], MotorParams] = {}
         self.vehicle = self.vehicle_check_for(profile, motors)
         #: the vehicle stage's latest torque of every motor (.siblings; None: no motor judged so)
         self.siblings = SiblingTorque([int(m) for m in motors]) if judges_siblings(self.noise) else None
@@ -864,10 +866,13 @@ class StreamingDiagnoser:
         self, batches: Mapping[int, MotorBatch], pairing_s: float | None = None
     ) -> dict[int, dict[str, NDArray]]:
         """Diagnose a few new samples of several motors in one core call (:func:`diagnose_motors`): the
-        same results as :meth:`update_many` motor by motor, for about the cost of one motor. Motors with
-        different models, a model with fitted effects, or batches with different columns are diagnosed
-        motor by motor. A batch's own ``pairing_s`` (per sample) takes the place of the call's."""
+        same results as :meth:`update_many` motor by motor, for about the cost of one motor. Motors whose
+        models differ only in R and k_e (identification's per-motor models of one type) go in one call,
+        their models as rows (:class:`~..model.params.MotorRows`); motors of different types, a model with
+        fitted effects, or batches with different columns are diagnosed motor by motor. A batch's own
+        ``pairing_s`` (per sample) takes the place of the call's."""
         groups: dict[tuple[int, tuple[bool, ...]], list[int]] = {}
+        types: dict[int, MotorParams] = {}
         alone: list[list[int]] = []
         for motor, batch in batches.items():
             motor_params = self.params[motor] if isinstance(self.params, dict) else self.params
@@ -885,7 +890,10 @@ class StreamingDiagnoser:
                     "input_excursion_v",
                 )
             )
-            groups.setdefault((id(motor_params), given), []).append(motor)
+            # one call for the motors of one type (their models differ at most in R and k_e)
+            kind = next((m for m in types if same_type(types[m], motor_params)), motor)
+            types.setdefault(kind, motor_params)
+            groups.setdefault((kind, given), []).append(motor)
         calls: list[tuple[list[int], StartedCall]] = []
         counts: dict[int, int] = {}
         for motors in [*groups.values(), *alone]:
@@ -954,13 +962,14 @@ class StreamingDiagnoser:
 
     def together(self, motors: Sequence[int]) -> bool:
         """Whether :meth:`update_motors` diagnoses these motors' batches (the same columns given) in one
-        core call, :meth:`update_rows`' (two or more motors of one model without fitted effects)."""
+        core call, :meth:`update_rows`' (two or more motors of one type without fitted effects: their
+        models differ at most in R and k_e, :func:`~..model.params.same_type`)."""
         if len(motors) < 2:
             return False
         if not isinstance(self.params, dict):
             return not self.params.effects
         first = self.params[motors[0]]
-        return not first.effects and all(self.params[m] is first for m in motors)
+        return not first.effects and all(same_type(first, self.params[m]) for m in motors)
 
     def update_rows(
         self,
@@ -989,7 +998,14 @@ class StreamingDiagnoser:
         if min(counts) < time_s.shape[1]:  # padding: the row's last time (no interval), no values
             for r, count in enumerate(counts):
                 time_s[r, count:] = time_s[r, count - 1] if count else 0.0
-        motor_params = self.params[motors[0]] if isinstance(self.params, dict) else self.params
+        params = self.params
+        if isinstance(params, dict):
+            key = tuple(motors)
+            motor_params = self._rows.get(key)
+            if motor_params is None:
+                motor_params = self._rows[key] = MotorRows.of([params[m] for m in motors])
+        else:
+            motor_params = params
         pairing = columns.get("pairing_s")
         return start_motors(
             motor_params,

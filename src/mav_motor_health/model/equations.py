@@ -64,16 +64,22 @@ def steady_state(
     v = np.asarray(voltage_v, dtype=float)
     shape = v.shape
     v = np.clip(v.ravel(), 0.0, None)
-    R, ke, Cp, k = params.R_ohm, params.k_e, params.C_p, params.k
-    linear = params.B + ke * ke / R
+    R: float | FloatArray = params.R_ohm
+    ke: float | FloatArray = params.k_e
+    Cp, k = params.C_p, params.k
+    if np.ndim(R) or np.ndim(ke):  # several motors' rows (MotorRows): each element its own motor's R, k_e
+        R, ke = (np.broadcast_to(x, shape).ravel() for x in (R, ke))
+    linear: float | FloatArray = params.B + ke * ke / R
     drive = ke * v / R - params.T_f  # −f(0): positive when the motor turns
     # the same test as start_voltage_v, so that a voltage at the start voltage itself (up to rounding of
     # the two forms) stands still
-    turning = (drive > 0) & (v > params.start_voltage_v)
+    turning = (drive > 0) & (v > max(params.T_f, 0.0) * R / ke)
     omega = np.zeros_like(v)
     omega[np.isnan(v)] = np.nan
     if np.any(turning):
         d = drive[turning]
+        if isinstance(linear, np.ndarray):
+            linear = linear[turning]
         hi = d / linear  # root of the linear part: an upper bound since C_p·ω^k ≥ 0
         if Cp > 0:
             hi = np.minimum(hi, (d / Cp) ** (1.0 / k))  # root of the power part: another upper bound
@@ -104,7 +110,9 @@ def steady_state(
     return SteadyState(omega.reshape(shape), current.reshape(shape))
 
 
-def _closed_form_start(Cp: float, linear: float, d: FloatArray, k: float, hi: FloatArray) -> FloatArray:
+def _closed_form_start(
+    Cp: float, linear: float | FloatArray, d: FloatArray, k: float, hi: FloatArray
+) -> FloatArray:
     """The root itself for k = 1, 2, 3 (closed forms), else the upper bound ``hi`` for Newton to descend from.
 
     For k = 3, ``ω³ + pω − q = 0`` with p = linear/C_p > 0 has one real root,

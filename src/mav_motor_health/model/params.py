@@ -10,9 +10,11 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+import numpy as np
+
 from ..errors import ConfigError
 
-__all__ = ["PARAMETER_UNITS", "MotorParams"]
+__all__ = ["PARAMETER_UNITS", "MotorParams", "MotorRows", "same_type"]
 
 #: Unit of every motor parameter, by the name it has everywhere (TOML, JSON, reports).
 PARAMETER_UNITS: dict[str, str] = {
@@ -99,3 +101,40 @@ class MotorParams:
         from dataclasses import replace
 
         return replace(self, **changes)
+
+
+#: the parameters that may differ between the motors of one type in one core call (:class:`MotorRows`)
+_PER_ROW = ("R_ohm", "k_e")
+
+
+def same_type(a: MotorParams, b: MotorParams) -> bool:
+    """Whether two motors' models differ at most in R and k_e (and name), as the per-motor models of one
+    identification do: the core can then diagnose them in one call (:class:`MotorRows`)."""
+    if a is b:
+        return True
+    if type(a) is not MotorParams or type(b) is not MotorParams or a.effects or b.effects:
+        return False
+    return all(getattr(a, f) == getattr(b, f) for f in ("C_p", "B", "T_f", "k", "J_kg_m2"))
+
+
+class MotorRows(MotorParams):
+    """Several motors of one type in one core call (the rows of its 2-D arrays, one per motor): R and k_e
+    as column arrays, one row per motor, every other parameter the type's. The model's equations are
+    elementwise, so each row gets what its own motor's :class:`MotorParams` gives. Made by :meth:`of`
+    only; not a value to compare, hash or write."""
+
+    @classmethod
+    def of(cls, motors: list[MotorParams]) -> MotorParams:
+        """The motors' models as rows (the first model itself where all are one); each must be
+        :func:`same_type` as the first."""
+        first = motors[0]
+        if all(m is first for m in motors):
+            return first
+        if not all(same_type(first, m) for m in motors):
+            raise ValueError("the motors' models differ beyond R and k_e: not one type")
+        rows = cls(
+            **{f: getattr(first, f) for f in ("R_ohm", "k_e", "C_p", "B", "T_f", "k", "name", "J_kg_m2")}
+        )
+        for name in _PER_ROW:
+            object.__setattr__(rows, name, np.array([[getattr(m, name)] for m in motors], dtype=float))
+        return rows
