@@ -125,8 +125,8 @@ def test_the_replay_reader_and_the_agent_see_the_same_samples(flight):
 
 @pytest.mark.parametrize("profile", ["flight", "flight_vehicle"])
 def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor, tmp_path, profile):
-    """The ESC map and the current sensor's gain of a vehicle file, and (flight_vehicle) each motor's noise
-    its bands are measured in: the agent calibrates each
+    """The ESC map and the current sensor's gain of a vehicle file, each motor's own model, and
+    (flight_vehicle) each motor's noise its bands are measured in: the agent calibrates each
     batch with the same function replay calibrates the whole table with, and announces what replay
     announces."""
     from mav_motor_health.config import dump_vehicle_params, load_profile, load_vehicle_params
@@ -160,7 +160,22 @@ def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor
         noise = {}
     current = CurrentReading(side="input", gain=0.9, gain_from="battery", offset_a=0.5)
     vehicle_file.write_text(
-        dump_vehicle_params(VehicleParams(motor=paper_motor, esc=EscMap(0.04), current=current, noise=noise)),
+        dump_vehicle_params(
+            VehicleParams(
+                motor=paper_motor,
+                # each motor its own R and k_e, as fit writes them: diagnosed live in one core call
+                per_motor={
+                    m: paper_motor.replace(
+                        R_ohm=paper_motor.R_ohm * (1 + 0.01 * (m - 3.5)),
+                        k_e=paper_motor.k_e * (1 + 0.001 * (m - 3.5)),
+                    )
+                    for m in range(1, 7)
+                },
+                esc=EscMap(0.04),
+                current=current,
+                noise=noise,
+            )
+        ),
         encoding="utf-8",
     )
     vehicle = load_vehicle_params(vehicle_file)
@@ -179,9 +194,11 @@ def test_a_vehicle_file_is_applied_live_as_replay_applies_it(flight, paper_motor
 
     async def main() -> None:
         async with Agent(config, on_row=rows.append) as agent:
+            assert agent.monitor.diagnoser.together(list(range(1, 7)))  # six models, one core call
             await asyncio.wait_for(agent.wait(), timeout=60)
 
     asyncio.run(main())
+    assert len(set(map(id, vehicle.models(range(1, 7)).values()))) == 6  # type: ignore[union-attr]
     assert len(rows) == len(batch)
     for motor in range(1, 7):
         live = [r for r in rows if r["motor"] == motor]
