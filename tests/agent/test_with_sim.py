@@ -99,10 +99,11 @@ def test_sim_fault_announced_over_mavlink_and_mqtt_within_a_second(broker, agent
             with SimVehicle(
                 load_scenario("flight/healthy_calm"), f"udpout:127.0.0.1:{agent_port}"
             ) as vehicle:
+                # (the vehicle's first HEARTBEAT, once a second, may come after its first ESC telemetry)
                 await until(
-                    lambda: all_reporting(listener),
+                    lambda: all_reporting(listener) and agent.tracker.autopilot is not None,
                     30,
-                    "six motors reporting",
+                    "six motors reporting and the autopilot known",
                 )
                 assert agent.tracker.autopilot == "ardupilot"
                 await asyncio.sleep(1.0)  # a second of healthy flight
