@@ -52,7 +52,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from mav_motor_health.identification import identify_logs  # noqa: E402
-from mav_motor_health.model.identify import back_emf_share_at, electrical_balance_at  # noqa: E402
+from mav_motor_health.model.equations import current_from_speed  # noqa: E402
+from mav_motor_health.model.identify import (  # noqa: E402
+    RIPPLE_SHARE_MAX,
+    back_emf_share_at,
+    electrical_balance_at,
+)
 from mav_motor_health.sim.engine import SimRecord, run_scenario  # noqa: E402
 from mav_motor_health.sim.scenario import world_scenario  # noqa: E402
 from mav_motor_health.sim.worlds import World, draw_world  # noqa: E402
@@ -78,6 +83,9 @@ class WorldResult:
     #: the balance at the true idle offset and side (relative errors of k_e and R), and the log's
     #: command jitter, pairing [s] and share of zero current readings
     at_truth: dict[str, float] = field(default_factory=dict)
+    #: the duty ripple identification estimated (jitter, ripple share), the exponent it chose, and the
+    #: identified model's current at the world's hover speed against the true motor's (relative excess)
+    ripple: dict[str, float] = field(default_factory=dict)
 
 
 def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
@@ -86,6 +94,7 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
     started = time.monotonic()
 
     at_truth: dict[str, float] = {}
+    ripple: dict[str, float] = {}
 
     def result(
         side_found: str, errors: dict[str, float], determined: dict[str, str], failure: str = ""
@@ -102,6 +111,7 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
             time.monotonic() - started,
             failure,
             at_truth,
+            ripple,
         )
 
     with tempfile.TemporaryDirectory(prefix="mmh-world-") as tmp:
@@ -116,6 +126,13 @@ def one_world(seed: int, fmt: str, duration_s: float) -> WorldResult:
             except Exception as exc:  # a benchmark reports every world, a failure too
                 return result("-", {}, {}, f"{type(exc).__name__}: {exc}")
     p = found.params
+    hover = world.hover_omega_rad_s
+    ripple.update(
+        jitter=getattr(found, "duty_jitter", math.nan),
+        share=getattr(found, "ripple_share", math.nan),
+        k=p.k,
+        excess=current_from_speed(p, hover) / current_from_speed(truth, hover) - 1.0,
+    )
     errors = {
         "k_e": p.k_e / truth.k_e - 1.0,
         "J_kg_m2": (p.J_kg_m2 or math.nan) / (truth.J_kg_m2 or math.nan) - 1.0,
@@ -268,6 +285,34 @@ def main(argv: list[str] | None = None) -> int:
             print(
                 f"k_e at the true ESC map, {what}: median |err| {100 * statistics.median(kes):.3g} %, worst "
                 f"{100 * max(kes):.3g} %, within 3 %: {sum(v <= BOUNDS['k_e'] for v in kes)}/{len(kes)}"
+            )
+    print(
+        "\nthe duty ripple identification estimated from the logged commands (jitter of the duty between"
+        "\nreports, relative; the share an input current reads above the load's from the ripple's copper"
+        "\nloss), the exponent chosen, and the identified model's current at the world's hover speed"
+        "\nagainst the true motor's: what a calmer flight's diagnosis would read the model against\n"
+    )
+    print(f"{'world':>6}{'side (true/found)':>22}{'jitter':>9}{'ripple':>9}{'k':>6}{'current at hover':>19}")
+    for r in ok:
+        q = r.ripple
+        flagged = (
+            " (k = 3: mostly ripple)" if r.side_found == "input" and q["share"] >= RIPPLE_SHARE_MAX else ""
+        )
+        print(
+            f"{r.seed:>6}{r.side_true + '/' + r.side_found:>22}{100 * q['jitter']:>8.1f}%{100 * q['share']:>8.0f}%"
+            f"{q['k']:>6g}{100 * q['excess']:>+18.1f}%{flagged}"
+        )
+    rows = [r for r in ok if r.side_found == "input"]
+    for name, chosen in (
+        ("below", [r for r in rows if r.ripple["share"] < RIPPLE_SHARE_MAX]),
+        ("at or above", [r for r in rows if r.ripple["share"] >= RIPPLE_SHARE_MAX]),
+    ):
+        if chosen:
+            excess = [abs(r.ripple["excess"]) for r in chosen]
+            print(
+                f"input-side worlds with the ripple share {name} {100 * RIPPLE_SHARE_MAX:.0f} %: {len(chosen)}, "
+                f"current at hover off by median {100 * statistics.median(excess):.0f} %, worst "
+                f"{100 * max(excess):.0f} %"
             )
     print(f"time per world: median {statistics.median(r.seconds for r in results):.1f} s")
     return 0

@@ -120,6 +120,11 @@ BATTERY_GAIN_RANGE = (0.3, 3.0)
 K_SPEED_SPAN = 1.6
 #: time constant of the mechanical balance's low-pass [s]
 MECHANICAL_TAU_S = 0.3
+#: an input current whose duty ripple's copper loss is estimated at this share of the reading or more
+#: (:func:`duty_ripple_share`) is mostly ripple, not load: the flight does not choose the propeller exponent
+#: (k = 3) and the report says to identify from a calmer flight (dimensionless; docs/model.md, "An input
+#: current that is mostly ripple")
+RIPPLE_SHARE_MAX = 0.5
 #: the elasticity of the ESC's current reading with the bus voltage at a given speed on each side: at a
 #: given speed the load, hence the motor current, is set; the duty that drives it is ∝ 1/V_bus, so an
 #: input-side reading (duty × motor current) goes as V_bus⁻¹ and a motor-side one does not move
@@ -194,6 +199,10 @@ class Identification:
     samples: int
     span_s: tuple[float, float]
     findings: tuple[str, ...] = ()
+    #: the commands' jitter between reports relative to the duty, and the share of an input current's
+    #: reading that the duty ripple's copper loss would make (:func:`duty_ripple_share`)
+    duty_jitter: float = math.nan
+    ripple_share: float = math.nan
 
     def report(self) -> str:
         p = self.params
@@ -233,6 +242,13 @@ class Identification:
                     else ""
                 )
             )
+        if math.isfinite(self.ripple_share):
+            lines += [
+                "",
+                f"duty ripple: the commands jitter by {100 * self.duty_jitter:.1f} % of the duty between "
+                f"reports; an input current would read {100 * self.ripple_share:.0f} % above the load's "
+                "current from the ripple's copper loss (jitter² over the winding's share of the voltage)",
+            ]
         lines += [f"finding: {f}" for f in self.findings]
         return "\n".join(lines)
 
@@ -490,6 +506,33 @@ def gain_from_pairs(esc_sum_a: FloatArray, battery_a: FloatArray) -> tuple[float
     0.76-1.09, offsets -4.9 to -778 A; the real PX4 quad read on the input side: slope 0.81 with 23.6 A
     for the rest of a quad drawing 26-74 A; docs/model.md). A lag moves charge in time but not how much."""
     return float(np.sum(esc_sum_a) / np.sum(battery_a)), 0.0
+
+
+def duty_ripple_share(data: Sequence[_MotorData], esc: EscMap, k_e: float) -> tuple[float, float]:
+    """(jitter, ripple share): how much the duty moves between reports, and what that does to a current
+    read on the ESC's input side (module doc of :mod:`..diagnosis.rules.equations`, "An input current's
+    ripple"). The input current the ESC averages is ``mean(d·i) = d̄·ī + V·σ_d²/R``: the motor current
+    follows the duty's fast part (``δi = δd·V/R``, the motor too slow to follow), and the two together
+    lose power in the winding. Relative to the load's ``d̄·ī`` that is ``(σ_d/d̄)² / s``, with ``s`` the
+    winding's share of the motor voltage, ``R·ī/(d̄·V)``. ``σ_d/d̄`` is read from the logged commands
+    (each motor: the spread of successive distinct duties, /√2, over its median duty; the motors'
+    median), ``s`` as ``1 − k_e·ω/(d·V)`` at the motors' median (at least 0.02). A flight-level figure:
+    the duty between two reports is not in the log, only samples of it."""
+    jitters, shares = [], []
+    for m in data:
+        duty = esc.duty(m.command)
+        changed = duty[np.concatenate([[True], duty[1:] != duty[:-1]])]
+        level = float(np.median(duty))
+        if changed.size > 10 and level > 0:
+            jitters.append(float(np.std(np.diff(changed))) / math.sqrt(2.0) / level)
+        motor_v = duty * m.bus_v
+        ok = motor_v > 0
+        if ok.any():
+            shares.append(float(np.median(1.0 - k_e * m.omega[ok] / motor_v[ok])))
+    if not jitters or not shares:
+        return math.nan, math.nan
+    jitter = float(np.median(jitters))
+    return jitter, jitter**2 / max(float(np.median(shares)), 0.02)
 
 
 def _lowpass(time_s: FloatArray, values: FloatArray, tau_s: float) -> FloatArray:
@@ -764,6 +807,8 @@ def identify(
     }
     w_typ = float(np.median(np.concatenate([m.omega for m in data])))
     load = prior.C_p * w_typ**prior.k + prior.B * w_typ + prior.T_f
+    jitter, ripple = duty_ripple_share(data, esc, k_e_type)
+    rippled = side == "input" and ripple >= RIPPLE_SHARE_MAX
     candidates = (k,) if k is not None else K_CANDIDATES
     # the torque from the motor current the ESC reports, where it does: the quantity the diagnosis
     # compares with the model, read at the speed's own instant (the voltage balance's (d·V − k_e·ω)/R
@@ -803,6 +848,15 @@ def identify(
     span = float(np.percentile(w_all, 95) / max(np.percentile(w_all, 5), 1e-9))
     if k is not None:
         chosen = k
+    elif rippled:
+        chosen = 3.0
+        findings.append(
+            f"the input current read on this flight is mostly the duty ripple's copper loss, not the load "
+            f"(it reads about {100 * ripple:.0f} % above the load's current: the commands jitter by "
+            f"{100 * jitter:.0f} % of the duty between reports): k = 3, the paper's; the propeller load and "
+            "the current bands carry the ripple and read too high in calmer air; identify from a calmer "
+            "flight (less wind, gentler manoeuvres)"
+        )
     elif span < K_SPEED_SPAN:
         chosen = 3.0
         findings.append(
@@ -882,6 +936,8 @@ def identify(
         samples=int(sum(m.time_s.size for m in data)),
         span_s=(float(t_all.min()), float(t_all.max())),
         findings=tuple(findings),
+        duty_jitter=jitter,
+        ripple_share=ripple,
     )
 
 
