@@ -512,7 +512,7 @@ def duty_ripple_share(data: Sequence[_MotorData], esc: EscMap, k_e: float) -> tu
     """(jitter, ripple share): how much the duty moves between reports, and what that does to a current
     read on the ESC's input side (module doc of :mod:`..diagnosis.rules.equations`, "An input current's
     ripple"). The input current the ESC averages is ``mean(d·i) = d̄·ī + V·σ_d²/R``: the motor current
-    follows the duty's fast part (``δi = δd·V/R``, the motor too slow to follow), and the two together
+    follows the duty's fast part (``δi = δd·V/R``, the rotor too slow to follow), and the two together
     lose power in the winding. Relative to the load's ``d̄·ī`` that is ``(σ_d/d̄)² / s``, with ``s`` the
     winding's share of the motor voltage, ``R·ī/(d̄·V)``. ``σ_d/d̄`` is read from the logged commands
     (each motor: the spread of successive distinct duties, /√2, over its median duty; the motors'
