@@ -56,6 +56,7 @@ from mav_motor_health.model.equations import current_from_speed  # noqa: E402
 from mav_motor_health.model.identify import (  # noqa: E402
     RIPPLE_SHARE_MAX,
     back_emf_share_at,
+    command_jitter,
     electrical_balance_at,
 )
 from mav_motor_health.sim.engine import SimRecord, run_scenario  # noqa: E402
@@ -157,10 +158,9 @@ def balance_at_truth(path: Path, world: World, record: SimRecord) -> dict[str, f
     for motor in table.motors():
         sel = table["motor"] == motor
         c = table["throttle"][sel]
-        c = c[np.isfinite(c)]
-        changes = c[np.concatenate([[True], c[1:] != c[:-1]])] if c.size else c
-        if changes.size > 10:
-            jitter.append(float(np.std(np.diff(changes)) / math.sqrt(2.0)))
+        spread = command_jitter(c[np.isfinite(c)])
+        if math.isfinite(spread):
+            jitter.append(spread)
     reading = table["esc_current_a"]
     out = {
         "jitter": statistics.median(jitter) if jitter else math.nan,

@@ -66,14 +66,15 @@ def steady_state(
     v = np.clip(v.ravel(), 0.0, None)
     R: float | FloatArray = params.R_ohm
     ke: float | FloatArray = params.k_e
+    start: float | FloatArray = params.start_voltage_v
     Cp, k = params.C_p, params.k
     if np.ndim(R) or np.ndim(ke):  # several motors' rows (MotorRows): each element its own motor's R, k_e
-        R, ke = (np.broadcast_to(x, shape).ravel() for x in (R, ke))
+        R, ke, start = (np.broadcast_to(x, shape).ravel() for x in (R, ke, start))
     linear: float | FloatArray = params.B + ke * ke / R
     drive = ke * v / R - params.T_f  # −f(0): positive when the motor turns
     # the same test as start_voltage_v, so that a voltage at the start voltage itself (up to rounding of
     # the two forms) stands still
-    turning = (drive > 0) & (v > max(params.T_f, 0.0) * R / ke)
+    turning = (drive > 0) & (v > start)
     omega = np.zeros_like(v)
     omega[np.isnan(v)] = np.nan
     if np.any(turning):

@@ -79,6 +79,7 @@ __all__ = [
     "Identification",
     "back_emf_share_at",
     "battery_current_pairs",
+    "command_jitter",
     "electrical_balance_at",
     "gain_from_pairs",
     "identify",
@@ -508,6 +509,15 @@ def gain_from_pairs(esc_sum_a: FloatArray, battery_a: FloatArray) -> tuple[float
     return float(np.sum(esc_sum_a) / np.sum(battery_a)), 0.0
 
 
+def command_jitter(values: FloatArray) -> float:
+    """How much a logged command moves from one logged value to the next: the spread of the successive
+    differences of its distinct successive values, /√2 (the spread of each value about its neighbours'
+    level for independent moves; a value held over several samples is one value). NaN with ten distinct
+    values or fewer."""
+    changed = values[np.concatenate([[True], values[1:] != values[:-1]])] if values.size else values
+    return float(np.std(np.diff(changed))) / math.sqrt(2.0) if changed.size > 10 else math.nan
+
+
 def duty_ripple_share(data: Sequence[_MotorData], esc: EscMap, k_e: float) -> tuple[float, float]:
     """(jitter, ripple share): how much the duty moves between reports, and what that does to a current
     read on the ESC's input side (module doc of :mod:`..diagnosis.rules.equations`, "An input current's
@@ -515,16 +525,14 @@ def duty_ripple_share(data: Sequence[_MotorData], esc: EscMap, k_e: float) -> tu
     follows the duty's fast part (``δi = δd·V/R``, the rotor too slow to follow), and the two together
     lose power in the winding. Relative to the load's ``d̄·ī`` that is ``(σ_d/d̄)² / s``, with ``s`` the
     winding's share of the motor voltage, ``R·ī/(d̄·V)``. ``σ_d/d̄`` is read from the logged commands
-    (each motor: the spread of successive distinct duties, /√2, over its median duty; the motors'
-    median), ``s`` as ``1 − k_e·ω/(d·V)`` at the motors' median (at least 0.02). A flight-level figure:
+    (each motor: :func:`command_jitter` of its duties over its median duty; the motors' median), ``s`` as ``1 − k_e·ω/(d·V)`` at the motors' median (at least 0.02). A flight-level figure:
     the duty between two reports is not in the log, only samples of it."""
     jitters, shares = [], []
     for m in data:
         duty = esc.duty(m.command)
-        changed = duty[np.concatenate([[True], duty[1:] != duty[:-1]])]
-        level = float(np.median(duty))
-        if changed.size > 10 and level > 0:
-            jitters.append(float(np.std(np.diff(changed))) / math.sqrt(2.0) / level)
+        spread, level = command_jitter(duty), float(np.median(duty))
+        if math.isfinite(spread) and level > 0:
+            jitters.append(spread / level)
         motor_v = duty * m.bus_v
         ok = motor_v > 0
         if ok.any():

@@ -7,7 +7,7 @@ Symbols follow the paper (Lee et al., section II): eq. 2 ``V = R·i + k_e·ω`` 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -132,9 +132,7 @@ class MotorRows(MotorParams):
             return first
         if not all(same_type(first, m) for m in motors):
             raise ValueError("the motors' models differ beyond R and k_e: not one type")
-        rows = cls(
-            **{f: getattr(first, f) for f in ("R_ohm", "k_e", "C_p", "B", "T_f", "k", "name", "J_kg_m2")}
-        )
+        rows = cls(**{f.name: getattr(first, f.name) for f in fields(first)})
         for name in _PER_ROW:
             object.__setattr__(rows, name, np.array([[getattr(m, name)] for m in motors], dtype=float))
         return rows
