@@ -17,6 +17,12 @@ percentile of |z| / 2.576: 1 where σ is right, above 1 where the bands would be
 current; then over all flights with enough such samples, the median and the worst tail per exponent and
 how many flights' tails exceed 1. ``conditions_growth`` is the exponent whose worst tail stays near 1.
 
+``--siblings M ...`` adds the growth bounded by the siblings' (rules/bands.py, "Grown as the siblings
+run"): the flight diagnosed again with the shipped profile and ``conditions_siblings`` = M, the growth
+each sample's bands got read back from them (its band over the one the diagnosis without growth gave),
+and the same tails divided by it. The shipped M is the largest narrowing whose worst tail and count of
+tails above 1 on the development worlds are those of the growth by the excess alone.
+
 The default worlds 1000-1019 are held out: the exponent was chosen on the development worlds 0-19.
 """
 
@@ -49,6 +55,8 @@ from mav_motor_health.sim.writers import write_record  # noqa: E402
 from mav_motor_health.telemetry import sources  # noqa: E402
 
 EXPONENTS = (0.0, 1.0, 1.5, 2.0)
+#: the siblings' multipliers evaluated by default (``--siblings``): the shipped one
+SIBLINGS = (4.0,)
 MIN_SAMPLES = 100  # a tail on fewer samples than this is not reported
 
 
@@ -58,12 +66,15 @@ def _tail(z: np.ndarray) -> float:
 
 
 def one_world(
-    world: int, duration_s: float
-) -> list[tuple[str, str, float, dict[float, tuple[float, float]]]]:
+    world: int, duration_s: float, siblings: tuple[float, ...] = SIBLINGS
+) -> list[tuple[str, str, float, dict[str, tuple[float, float]]]]:
     """Per healthy flight: (world label, level, share of samples beyond the limits within the reach,
-    {exponent: (speed tail, current tail)}); empty where identification refuses the world."""
+    {growth: (speed tail, current tail)}, growth ``g=...`` by the excess's exponent, ``m=...`` bounded by
+    the siblings'); empty where identification refuses the world."""
     shipped = load_profile("flight_vehicle")
-    everywhere = dataclasses.replace(shipped, conditions_reach=100.0, conditions_growth=0.0)
+    everywhere = dataclasses.replace(
+        shipped, conditions_reach=100.0, conditions_growth=0.0, conditions_siblings=0.0
+    )
     reach = shipped.conditions_reach
     out = []
     with tempfile.TemporaryDirectory(prefix=f"mmh-beyond{world}-") as tmp, warnings.catch_warnings():
@@ -86,7 +97,18 @@ def one_world(
             table = vehicle.calibrate(sources.read(flight_log))
             params = vehicle.models(range(1, max(motor_numbers(table["motor"])) + 1))
             d = diagnose(table, params, everywhere, noise)
+            # the bands with the siblings' bound, over the bands without growth: the growth each sample got
+            grown_by = {}
+            for m in siblings:
+                bounded = dataclasses.replace(shipped, conditions_siblings=m)
+                g = diagnose(table, params, bounded, noise)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    grown_by[m] = (
+                        g["speed_band_rad_s"] / d["speed_band_rad_s"],
+                        g["current_band_a"] / d["current_band_a"],
+                    )
             z_speed, z_current, excess, total = [], [], [], 0
+            by_sibling: dict[float, tuple[list, list]] = {m: ([], []) for m in siblings}
             for motor in np.unique(d["motor"]):
                 rows = (d["motor"] == motor) & d["steady"] & (d["throttle"] >= shipped.min_command)
                 n = noise[int(motor)]
@@ -97,11 +119,18 @@ def one_world(
                 z_current.append((d["current_judged_a"][rows] - d["current_model_a"][rows]) / current)
                 excess.append(n.beyond_conditions(shipped.range_margin, a, e))
                 total += int(np.count_nonzero(d["motor"] == motor))
+                for m in siblings:
+                    by_sibling[m][0].append(grown_by[m][0][rows])
+                    by_sibling[m][1].append(grown_by[m][1][rows])
             zs, zc, x = (np.concatenate(v) for v in (z_speed, z_current, excess))
             region = (x > 1.0) & (x <= reach)
             tails = {
-                g: (_tail(zs[region] / x[region] ** g), _tail(zc[region] / x[region] ** g)) for g in EXPONENTS
+                f"g={g:g}": (_tail(zs[region] / x[region] ** g), _tail(zc[region] / x[region] ** g))
+                for g in EXPONENTS
             }
+            for m in siblings:
+                fs, fc = (np.concatenate(v) for v in by_sibling[m])
+                tails[f"m={m:g}"] = (_tail(zs[region] / fs[region]), _tail(zc[region] / fc[region]))
             out.append((label, flight.turbulence, float(np.count_nonzero(region)) / max(total, 1), tails))
     return out
 
@@ -112,29 +141,36 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--count", type=int, default=20)
     parser.add_argument("--duration-s", type=float, default=60.0, help="each healthy flight's length")
     parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument(
+        "--siblings",
+        type=float,
+        nargs="*",
+        default=list(SIBLINGS),
+        help="conditions_siblings multipliers to evaluate (default: the shipped 4)",
+    )
     args = parser.parse_args(argv)
     started = time.monotonic()
     worlds = list(range(args.first, args.first + args.count))
+    siblings = tuple(args.siblings)
+    growths = [f"g={g:g}" for g in EXPONENTS] + [f"m={m:g}" for m in siblings]
     with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        results = list(pool.map(one_world, worlds, [args.duration_s] * len(worlds)))
+        results = list(pool.map(one_world, worlds, [args.duration_s] * len(worlds), [siblings] * len(worlds)))
     refused = [w for w, r in zip(worlds, results) if not r]
     reach = load_profile("flight_vehicle").conditions_reach
     print(f"beyond the identification flight's limits, up to {reach:g} x them; tail of |z| (1: sigma right)")
-    print(
-        "world                   level     share  " + "  ".join(f"g={g:<3g} speed/current" for g in EXPONENTS)
-    )
+    print("world                   level     share  " + "  ".join(f"{g:<5s} speed/current" for g in growths))
     rows = [row for r in results for row in r]
     for label, level, share, tails in rows:
-        cells = "  ".join(f"{s:5.2f} / {c:5.2f}      " for s, c in (tails[g] for g in EXPONENTS))
+        cells = "  ".join(f"{s:5.2f} / {c:5.2f}      " for s, c in (tails[g] for g in growths))
         print(f"{label:23s} {level:9s} {100 * share:5.1f} %  {cells}")
     print()
-    for g in EXPONENTS:
+    for g in growths:
         worst = [max((t for t in tails[g] if np.isfinite(t)), default=float("nan")) for *_, tails in rows]
         worst = [w for w in worst if np.isfinite(w)]
         if not worst:
             continue
         print(
-            f"growth {g:g}: over {len(worst)} flights with >= {MIN_SAMPLES} samples beyond, the larger tail "
+            f"growth {g}: over {len(worst)} flights with >= {MIN_SAMPLES} samples beyond, the larger tail "
             f"median {statistics.median(worst):.2f}, worst {max(worst):.2f}; above 1 on {sum(w > 1 for w in worst)}"
         )
     if refused:

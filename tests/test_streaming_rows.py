@@ -7,6 +7,7 @@ missing samples and six ESCs reporting at their own rates is fed in random chunk
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -188,11 +189,15 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
         assert together.carries[1].rules["tree"].count >= 50
 
 
-def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor) -> None:
+@pytest.mark.parametrize("limited", [False, True], ids=["within the conditions", "grown as siblings run"])
+def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor, limited) -> None:
     """With the torque judged against the siblings (diagnosis/siblings.py), a motor's results depend on
     the others': batches cut in the order samples arrive (time, then motor) through
     :meth:`StreamingDiagnoser.update_motors` give what :func:`diagnose` gives the whole table. (Every
-    sample given: a batch ending on a lost sample differs by a sample for its own reason, see above.)"""
+    sample given: a batch ending on a lost sample differs by a sample for its own reason, see above.)
+    ``limited``: the noise measured on a calmer flight, so that most samples lie beyond its conditions,
+    where the shipped profile grows the bands as the siblings' deviations run (rules/bands.py): the
+    bands depend on the other motors' too, and are the same both ways."""
     motors = _window(lost=False)
     from mav_motor_health.diagnosis.pipeline import diagnose
     from mav_motor_health.telemetry.table import TelemetryTable
@@ -217,11 +222,23 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor) 
         }
     )
     whole = diagnose(table, paper_motor, profile, noise)
+    if limited:
+        calm = float(np.quantile(whole["input_activity_v"][whole["steady"]], 0.3))
+        noise = {m: dataclasses.replace(n, activity_high_v=calm) for m, n in noise.items()}
+        whole = diagnose(table, paper_motor, profile, noise)
+        # the growth bounded by the siblings' somewhere, and nowhere below the noise as measured
+        m1 = whole["motor"] == 1
+        excess = whole["input_activity_v"][m1] / ((1.0 + profile.range_margin) * calm)
+        sigma = noise[1].sigmas(whole["input_activity_v"][m1])[0] * profile.noise_bands
+        band = whole["speed_band_rad_s"][m1]
+        assert (band >= sigma * (1 - 1e-12)).all()
+        assert (band < 0.9 * sigma * np.maximum(excess, 1.0) ** profile.conditions_growth).mean() > 0.05
     assert np.isfinite(whole["torque_siblings_nm"]).mean() > 0.5  # the stage ran
     arrival = np.lexsort((whole["motor"], whole["time_s"]))
     stream = StreamingDiagnoser(paper_motor, profile, list(motors), noise)
     rng = np.random.default_rng(19)
-    got = {name: np.full(len(whole), np.nan) for name in ("state", "announced", "torque_siblings_nm")}
+    compared = ("state", "announced", "torque_siblings_nm", "speed_band_rad_s", "current_band_a")
+    got = {name: np.full(len(whole), np.nan) for name in compared}
     k = 0
     while k < arrival.size:
         size = int(rng.integers(1, 30))
@@ -251,9 +268,8 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor) 
     measured = np.isfinite(whole["omega_rad_s"]) | np.isfinite(whole["current_a"])
     for name in ("state", "announced"):
         np.testing.assert_array_equal(got[name][measured], whole[name][measured], err_msg=name)
-    np.testing.assert_allclose(
-        got["torque_siblings_nm"][measured], whole["torque_siblings_nm"][measured], rtol=1e-9, equal_nan=True
-    )
+    for name in compared[2:]:
+        np.testing.assert_allclose(got[name][measured], whole[name][measured], rtol=1e-9, equal_nan=True)
 
 
 def test_vehicle_check_row_by_row_equals_whole_arrays() -> None:

@@ -279,6 +279,8 @@ _PROFILE_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "range_margin": (0.0, 10.0, ""),
     "conditions_reach": (1.0, 100.0, ""),
     "conditions_growth": (0.0, 4.0, ""),
+    "conditions_siblings": (0.0, 100.0, ""),
+    "conditions_siblings_s": (0.001, 600.0, "s"),
     "equation_bands": (0.0, 50.0, ""),
 }
 _VEHICLE_CHECK_RANGES: dict[str, tuple[float | None, float | None, str]] = {
@@ -438,6 +440,9 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
     if profile.conditions_reach != 1.0:
         lines.append(f"conditions_reach = {profile.conditions_reach!r}")
         lines.append(f"conditions_growth = {profile.conditions_growth!r}")
+        if profile.conditions_siblings:
+            lines.append(f"conditions_siblings = {profile.conditions_siblings!r}")
+            lines.append(f"conditions_siblings_s = {profile.conditions_siblings_s!r}")
     if profile.equation_bands:
         lines.append(f"equation_bands = {profile.equation_bands!r}")
     lines += [

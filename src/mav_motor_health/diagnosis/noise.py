@@ -49,7 +49,12 @@ on all but one, 1.43 σ at worst), up to ``conditions_reach`` times the limits; 
 judged (a stall is still named). Only where the model speed lies in the identified range: beyond it only
 a propeller that lost its load is judged, against σ as measured (rules/judged.py). The wider bands cost
 sensitivity, not false events: a departure has to be larger to be named in air rougher than the vehicle
-was identified in.
+was identified in. That growth is what the worst of those flights needed; most needed far less
+(the excess says how far beyond the limits a sample lies, not how much wider its deviations run there:
+flights at five times the limits needed no growth, others at twice needed three times), and their bands
+came out 5 to 20 times wider than their deviations ran. The shipped profile therefore bounds it by what
+the other motors show in the same air (``conditions_siblings``, :mod:`.rules.bands`, "Grown as the
+siblings run").
 
 **After an input step.** The balance rule waits ``settle_s`` after an input step before it judges (two
 operating points in its low-passes). On some vehicles that wait is most of a windy flight: a log whose

@@ -2,11 +2,13 @@
 comparison with the model → sensors → bands → pairing → tree → [vehicle stage] → torque balance → slow
 look → judged → sequential test → persistence; :mod:`.rules`).
 
-The vehicle stage (:mod:`.siblings`) is the one step that looks across motors: before the rule that
-judges a motor's torque against its siblings', every motor's call is run up to it
-(:func:`start_motors`, a :class:`StartedCall`), the siblings' reference is worked out over all of them in
-the order the samples arrive (:func:`run_vehicle_stage`), and then each call finishes. It runs only where
-a motor's noise was measured against its siblings (:func:`judges_siblings`).
+The vehicle stage (:mod:`.siblings`) is the one step that looks across motors: before the first rule
+that reads the other motors' values (the torque judged against its siblings'; with the profile's
+``conditions_siblings``, the bands, which then come before it), every motor's call is run up to it
+(:func:`start_motors`, a :class:`StartedCall`), the siblings' references are worked out over all of them
+in the order the samples arrive (:func:`run_vehicle_stage`), and then each call finishes. It runs only
+where a motor's noise was measured against its siblings or the profile grows its bands as they run
+(:func:`vehicle_stage`).
 
 :func:`start_motors` with :meth:`StartedCall.finish` is the single implementation (:func:`diagnose_motors`
 runs both, without the stage): rows of samples, one row per motor, each with the carry from its previous
@@ -33,7 +35,7 @@ from .noise import BandNoise, require_noise
 from .plausibility import CurrentSumCheck, SensorIssue
 from .profile import ThresholdProfile
 from .rules.base import Frame, Rule
-from .siblings import SiblingTorque
+from .siblings import STAGE_QUANTITIES, VehicleStage
 from .states import MotorState
 from .vehicle_check import VehicleCheck, VehicleFit, apply_vehicle_fit
 
@@ -219,22 +221,33 @@ def start_motor(
     )
 
 
-def judges_siblings(noise: Mapping[int, BandNoise] | None) -> bool:
-    """Whether a motor of the vehicle is judged against its siblings' torque (its noise was measured so,
-    :mod:`.siblings`): then the vehicle stage runs over every motor."""
-    return noise is not None and any(n.torque_vs_siblings is not None for n in noise.values())
+def vehicle_stage(
+    motors: Sequence[int], noise: Mapping[int, BandNoise] | None, profile: ThresholdProfile
+) -> VehicleStage | None:
+    """The vehicle stage of ``motors`` (:mod:`.siblings`), with what it takes across them: the torque
+    where a motor is judged against its siblings' (its noise was measured so), the deviations' live
+    noise where ``profile`` grows its bands as the siblings run (``conditions_siblings``); None: neither,
+    no stage (or no motors)."""
+    quantities: list[str] = []
+    if motors and noise:
+        if any(n.torque_vs_siblings is not None for n in noise.values()):
+            quantities.append("torque_residual_nm")
+        if profile.grows_as_siblings:
+            quantities += ["live_z2_speed", "live_z2_current"]
+    return VehicleStage([int(m) for m in motors], tuple(quantities)) if quantities else None
 
 
 def run_vehicle_stage(
-    siblings: SiblingTorque | None, calls: Sequence[tuple[Sequence[int], StartedCall]]
+    stage: VehicleStage | None, calls: Sequence[tuple[Sequence[int], StartedCall]]
 ) -> list[tuple[dict[str, NDArray], list[MotorCarry]]]:
     """Finish started calls of a vehicle's motors (each with its rows' motor numbers) with the vehicle
-    stage between (:mod:`.siblings`): the siblings' torque reference of every row, from every call's
-    samples together in the order they arrive and the latest ones carried in ``siblings`` (None: no
-    stage, the calls finished without a reference)."""
-    staged = [(motors, call) for motors, call in calls if siblings is not None and call.feeds_siblings]
-    references: dict[int, NDArray[np.float64]] = {}
+    stage between (:mod:`.siblings`): the siblings' reference of every row for each quantity the calls
+    give (:data:`~.siblings.STAGE_QUANTITIES`), from every call's samples together in the order they
+    arrive and the latest ones carried in ``stage`` (None: no stage, the calls finished without one)."""
+    staged = [(motors, call) for motors, call in calls if stage is not None and call.feeds_siblings]
+    references: dict[int, dict[str, NDArray[np.float64]]] = {id(call): {} for _, call in staged}
     if staged:
+        assert stage is not None
         frames = [call.frame for _, call in staged]
         width = max(f.shape[1] for f in frames if f is not None)
 
@@ -251,20 +264,17 @@ def run_vehicle_stage(
 
         counts = [k for f in frames if f is not None for k in f.counts]
         every = [int(m) for motors, _ in staged for m in motors]
-        assert siblings is not None
-        reference = siblings.reference(
-            every,
-            stacked("time_s"),
-            stacked("torque_residual_nm"),
-            counts,
-            stacked("low_pass_s"),
-        )
-        r = 0
-        for _, call in staged:
-            assert call.frame is not None
-            rows, n = call.frame.shape
-            references[id(call)] = reference[r : r + rows, :n]
-            r += rows
+        times, ages = stacked("time_s"), stacked("low_pass_s")
+        for given, into in STAGE_QUANTITIES:
+            if given not in stage.quantities or all(getattr(f, given) is None for f in frames):
+                continue
+            reference = stage.of(given).reference(every, times, stacked(given), counts, ages)
+            r = 0
+            for _, call in staged:
+                assert call.frame is not None
+                rows, n = call.frame.shape
+                references[id(call)][into] = reference[r : r + rows, :n]
+                r += rows
     return [call.finish(references.get(id(call))) for _, call in calls]
 
 
@@ -333,24 +343,21 @@ class StartedCall:
 
     @property
     def feeds_siblings(self) -> bool:
-        """Whether the call has torque residuals and a rule still to run reads the siblings' reference
-        (the vehicle stage takes its rows)."""
-        frame = self.frame
-        return (
-            frame is not None
-            and frame.torque_residual_nm is not None
-            and any(rule.reads_siblings for rule in self.rest)
-        )
+        """Whether the call has samples and a rule still to run reads the siblings' reference (the
+        vehicle stage takes its rows)."""
+        return self.frame is not None and any(rule.reads_siblings for rule in self.rest)
 
     def finish(
-        self, torque_siblings_nm: NDArray[np.float64] | None = None
+        self, references: Mapping[str, NDArray[np.float64]] | None = None
     ) -> tuple[dict[str, NDArray], list[MotorCarry]]:
-        """The rest of the rules, with the siblings' torque reference (2-D like the frame; None: none);
-        returns the call's result columns and the rows' new carries."""
+        """The rest of the rules, with the siblings' references (2-D like the frame, by the frame field
+        of :data:`~.siblings.STAGE_QUANTITIES` each goes to; None or missing: none); returns the call's
+        result columns and the rows' new carries."""
         frame = self.frame
         if frame is None:
             return {name: np.zeros((len(self.carries), 0)) for name in _RESULT_COLUMNS}, self.carries
-        frame.torque_siblings_nm = torque_siblings_nm
+        for _, into in STAGE_QUANTITIES:
+            setattr(frame, into, None if references is None else references.get(into))
         _run_rules(frame, self.rest, self.carries, self.new)
         return _result_columns(frame), [MotorCarry(rules) for rules in self.new]
 
@@ -594,7 +601,7 @@ def diagnose(
     # for a bench file's "motors" (different motors, not one vehicle's) or a vehicle judged without it,
     # whose motors finish one by one (one motor's arrays alive at a time)
     frame_motors = vehicle_motors(table)
-    stage = SiblingTorque(frame_motors) if frame_motors and judges_siblings(noise) else None
+    stage = vehicle_stage(frame_motors, noise, profile)
     started: list[tuple[int, NDArray[np.intp] | slice, NDArray[np.intp], StartedCall]] = []
     finished: list[tuple[dict[str, NDArray], list[MotorCarry]]] = []
     for motor in ordered.motors():
@@ -741,8 +748,8 @@ class StreamingDiagnoser:
         #: the models of motors diagnosed in one call, as rows (:class:`~..model.params.MotorRows`)
         self._rows: dict[tuple[int, ...], MotorParams] = {}
         self.vehicle = self.vehicle_check_for(profile, motors)
-        #: the vehicle stage's latest torque of every motor (.siblings; None: no motor judged so)
-        self.siblings = SiblingTorque([int(m) for m in motors]) if judges_siblings(self.noise) else None
+        #: the vehicle stage's latest values of every motor (.siblings; None: no stage for this vehicle)
+        self.siblings = vehicle_stage(motors, self.noise, profile)
 
     @staticmethod
     def vehicle_check_for(profile: ThresholdProfile, motors: Sequence[int]) -> VehicleCheck:

@@ -136,6 +136,12 @@ class ThresholdProfile:
     by ``excess ** conditions_growth`` (≥ 0; excess: how many times the limit the sample lies beyond it),
     so that the bands grow faster there than the noise was measured to grow (:mod:`.noise`, "Beyond the
     measured conditions"). 1, the default: nothing beyond the limits.
+    ``conditions_siblings`` (m > 0, with ``conditions_growth``): beyond the limits the bands grow by no more
+    than m times how wide the other motors' deviations run right now, in units of their identified σ
+    (the square root of the median over the siblings of each one's ``z²`` low-passed over
+    ``conditions_siblings_s`` seconds), and never by less than 1: the air the six motors share, measured on
+    them, instead of a growth that only the worst flight needed (:mod:`.rules.bands`, "Grown as the siblings
+    run"). 0, the default: ``excess ** conditions_growth`` alone.
     ``equation_bands`` (n > 0, with ``noise_bands``): friction (F1.1) and a lighter propeller (F3.1),
     which move the model's torque balance alone, are judged in it, against n times its own noise, which
     identification measured (:mod:`.rules.equations`; not where the ESC reports its input current, whose
@@ -163,6 +169,8 @@ class ThresholdProfile:
     range_margin: float = 0.0
     conditions_reach: float = 1.0
     conditions_growth: float = 0.0
+    conditions_siblings: float = 0.0
+    conditions_siblings_s: float = 10.0
     equation_bands: float = 0.0
     steady: CompareRule = field(default_factory=StepRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
@@ -258,6 +266,18 @@ class ThresholdProfile:
                 key="conditions_growth",
                 expected="an exponent 0..4 of the bands' growth beyond the identified flight's conditions",
             )
+        if not 0 <= self.conditions_siblings <= 100:
+            raise ConfigError(
+                f"{self.conditions_siblings!r}",
+                key="conditions_siblings",
+                expected="a multiple 0..100 of the siblings' deviations in their noise (0: not used)",
+            )
+        if not 0 < self.conditions_siblings_s <= 600:
+            raise ConfigError(
+                f"{self.conditions_siblings_s!r}",
+                key="conditions_siblings_s",
+                expected="a time constant > 0 and <= 600 s",
+            )
         if not self.stall_split_typical >= 0:
             raise ConfigError(
                 f"{self.stall_split_typical!r}",
@@ -290,7 +310,7 @@ class ThresholdProfile:
         with it), the pairing's limits, the tree and its slow look, which samples count, the sequential test where
         the profile has one, persistence. Made once per profile (frozen)."""
         from .rules.announce import Persistence, Sequential
-        from .rules.bands import Bands
+        from .rules.bands import Bands, LiveNoise, SiblingBands
         from .rules.equations import Equations
         from .rules.judged import Judged
         from .rules.offsets import HealthyOffsets
@@ -303,7 +323,7 @@ class ThresholdProfile:
             *([HealthyOffsets()] if self.noise_bands > 0 else []),
             SensorCheck(self.plausibility),
             PairingGuard(self),
-            Bands(self),
+            *([LiveNoise(self), SiblingBands(self)] if self.grows_as_siblings else [Bands(self)]),
             PairingLimits(self),
             Tree(self),
             *([Equations(self)] if self.equation_bands > 0 else []),
@@ -359,6 +379,17 @@ class ThresholdProfile:
         was measured at (``range_margin`` > 0 with bands in noise units): :class:`~.rules.judged.Judged`
         sets the rest aside, and :class:`~.rules.pairing.PairingLimits` then leaves the pairing to it."""
         return self.noise_bands > 0 and self.range_margin > 0
+
+    @property
+    def grows_as_siblings(self) -> bool:
+        """Whether the bands beyond the noise's conditions grow as the siblings' deviations run
+        (``conditions_siblings``, :mod:`.rules.bands`): the vehicle stage then runs before the bands."""
+        return (
+            self.judges_within_noise_conditions
+            and self.conditions_reach > 1
+            and self.conditions_growth > 0
+            and self.conditions_siblings > 0
+        )
 
     def speed_only_band(
         self, speed_band_rad_s: ArrayLike, omega_model_rad_s: ArrayLike

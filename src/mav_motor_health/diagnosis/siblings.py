@@ -20,6 +20,12 @@ but one of the vehicle's other motors have one, there is none (NaN) and the torq
 one motor without a residual (its ESC silent, a lost packet) is tolerated, two are not. Replay calls
 :meth:`SiblingTorque.reference` once with every motor's whole log; the live agent with each batch, the
 latest value of every motor carried between calls: both give the same references.
+
+The same stage takes a second look across motors where the profile grows its bands beyond the noise's
+conditions as the siblings run (``conditions_siblings``, :mod:`.rules.bands`): each motor's low-passed
+square of its deviations in its identified σ, speed and current, whose siblings' median says how wide
+healthy deviations run in the air all six share right now. :class:`VehicleStage` carries one
+:class:`SiblingTorque` (the latest values of every motor) per quantity, :data:`STAGE_QUANTITIES`.
 """
 
 from __future__ import annotations
@@ -30,7 +36,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SiblingTorque", "median_of_finite"]
+__all__ = ["STAGE_QUANTITIES", "SiblingTorque", "VehicleStage", "median_of_finite"]
+
+#: what the vehicle stage takes across motors: the frame's value each motor gives, and the frame's field
+#: its siblings' reference goes to (rules/base.py, :class:`~.rules.base.Frame`)
+STAGE_QUANTITIES = (
+    ("torque_residual_nm", "torque_siblings_nm"),
+    ("live_z2_speed", "siblings_z2_speed"),
+    ("live_z2_current", "siblings_z2_current"),
+)
 
 
 @dataclass
@@ -91,6 +105,24 @@ class SiblingTorque:
         back[order] = k
         out[r_at, c_at] = reference[back[len(carried) :]]
         return out
+
+
+@dataclass
+class VehicleStage:
+    """The vehicle stage's state: for each quantity of :data:`STAGE_QUANTITIES` a motor gives, every
+    motor's latest value (a :class:`SiblingTorque` each, made at the quantity's first values)."""
+
+    #: the vehicle's motor numbers (its frame)
+    motors: list[int] = field(default_factory=list)
+    #: the frame fields of :data:`STAGE_QUANTITIES` the stage takes (what a rule after it reads)
+    quantities: tuple[str, ...] = ()
+    latest: dict[str, SiblingTorque] = field(default_factory=dict)
+
+    def of(self, quantity: str) -> SiblingTorque:
+        """The latest values of ``quantity`` (a frame field of :data:`STAGE_QUANTITIES`)."""
+        if quantity not in self.latest:
+            self.latest[quantity] = SiblingTorque(list(self.motors))
+        return self.latest[quantity]
 
 
 def median_of_finite(values: NDArray[np.float64], need: int) -> NDArray[np.float64]:

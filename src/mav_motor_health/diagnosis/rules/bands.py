@@ -1,22 +1,139 @@
 """The bands around the model the tree judges against: the profile's absolute ones, or each motor's own
-noise times ``noise_bands`` (:mod:`..noise`)."""
+noise times ``noise_bands`` (:mod:`..noise`).
+
+**Grown as the siblings run** (``conditions_siblings``). Beyond the input activity and the pairing error
+the identification flight reached, σ(a, e) is an extrapolation, and ``excess ** conditions_growth`` grows
+it so that the worst healthy flight of the development worlds stayed inside; on most flights that made
+the bands 5 to 20 times wider than their healthy deviations ran (``benchmarks/bench_noise_beyond.py``,
+the tail at growth 2 as low as 0.05 σ), and a fault as deep as an open transistor in moderate air read
+NORMAL. How wide healthy deviations run in the air of the moment is something the vehicle itself shows:
+the six motors share the air, the battery and the model's error away from the identification flight.
+So :class:`LiveNoise` low-passes each motor's squared deviations in its identified σ, ``z²``, over the
+judged samples in its identified speed range (time constant ``conditions_siblings_s``), the vehicle
+stage (:mod:`..siblings`) takes the median of the other motors' latest, and :class:`SiblingBands` grows
+the bands beyond the conditions by ``m·√(median)`` (m = ``conditions_siblings``), never by less than 1
+and never by more than ``excess ** conditions_growth``: a motor is judged against how its siblings run,
+not against itself (a fault's own departure never widens its band), and where fewer than all but one of
+its siblings have a value the growth is the excess's alone. Within the conditions nothing changes.
+"""
 
 from __future__ import annotations
 
 import math
 import warnings
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ...model.dynamics import affine_recurrence
 from .base import Frame, Rule
 
 if TYPE_CHECKING:
+    from ..noise import BandNoise
     from ..profile import ThresholdProfile
 
-__all__ = ["Bands"]
+__all__ = ["Bands", "LiveNoise", "SiblingBands"]
+
+#: a sample's z² counts at most this much in the live noise (one wild sample moves it by a bounded step)
+Z2_MAX = 100.0
+
+
+def _noise_of(frame: Frame, profile: ThresholdProfile) -> list[BandNoise]:
+    noise = frame.noise
+    if noise is None or len(noise) != frame.shape[0]:
+        raise ValueError(f"profile {profile.name!r} needs each motor's noise (noise_bands); none given")
+    return list(noise)
+
+
+def _sigmas(frame: Frame, noise: list[BandNoise]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each row's identified σ(a, e) of the speed and the current at its samples."""
+    shape = frame.shape
+    a = np.zeros(shape) if frame.activity_v is None else frame.activity_v
+    e = frame.pairing_error_rad_s
+    speed, current = np.empty(shape), np.empty(shape)
+    for r, motor_noise in enumerate(noise):
+        speed[r], current[r] = motor_noise.sigmas(a[r], None if e is None else e[r])
+    return speed, current
+
+
+@dataclass(frozen=True)
+class LiveNoise(Rule):
+    """Writes ``sigma_speed_rad_s``, ``sigma_current_a`` and the low-passed ``live_z2_speed``,
+    ``live_z2_current`` of each motor (module doc, "Grown as the siblings run"); carries each low-pass's
+    last counted time and value (speed, then current)."""
+
+    name = "live_noise"
+    profile: ThresholdProfile
+
+    def new_carry(self) -> Any:
+        return (math.nan, math.nan, math.nan, math.nan)
+
+    def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
+        profile = self.profile
+        noise = _noise_of(frame, profile)
+        speed, current = _sigmas(frame, noise)
+        frame.sigma_speed_rad_s, frame.sigma_current_a = speed, current
+        rows, n = frame.shape
+        counted = frame.steady & (np.arange(n)[None, :] < np.asarray(frame.counts)[:, None])
+        for r, motor_noise in enumerate(noise):
+            counted[r] &= motor_noise.in_speed_range(frame.omega_model_rad_s[r], profile.range_margin)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z2 = np.concatenate(
+                [
+                    ((frame.omega_judged_rad_s - frame.omega_model_rad_s) / speed) ** 2,
+                    ((frame.current_judged_a - frame.current_model_a) / current) ** 2,
+                ]
+            )
+        counted2 = np.concatenate([counted, counted]) & np.isfinite(z2)
+        carried = np.array(carries, dtype=float).reshape(rows, 2, 2)  # (speed, current) × (time, value)
+        low, last_t, last_y = held_average(
+            np.concatenate([frame.time_s, frame.time_s]),
+            np.minimum(z2, Z2_MAX),
+            counted2,
+            profile.conditions_siblings_s,
+            np.concatenate([carried[:, 0, 0], carried[:, 1, 0]]),
+            np.concatenate([carried[:, 0, 1], carried[:, 1, 1]]),
+        )
+        frame.live_z2_speed, frame.live_z2_current = low[:rows], low[rows:]
+        return [(last_t[r], last_y[r], last_t[rows + r], last_y[rows + r]) for r in range(rows)]
+
+
+def held_average(
+    time_s: NDArray[np.float64],
+    values: NDArray[np.float64],
+    counted: NDArray[np.bool_],
+    tau_s: float,
+    carry_t: NDArray[np.float64],
+    carry_y: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], list[float], list[float]]:
+    """An exponential average of each row's counted values over time (time constant ``tau_s``), held
+    between them: at a counted sample ``y ← a·y + (1 − a)·x`` with ``a = exp(−Δt/τ)``, Δt the time since
+    the row's previous counted sample (the carried one's at the start), the first counted sample ever
+    starting it at its value; elsewhere y holds (NaN before the first). Only counted samples move it or
+    its clock, so a split of the rows into calls gives the same values (to rounding). Returns the
+    averages and each row's last counted time and average (the carried ones where none was counted)."""
+    rows, n = values.shape
+    index = np.where(counted, np.arange(n)[None, :], -1)
+    last = np.maximum.accumulate(index, axis=1)  # the latest counted sample at or before each
+    before = np.empty((rows, n), dtype=np.intp)  # ... and strictly before each
+    before[:, 0] = -1
+    before[:, 1:] = last[:, :-1]
+    t_before = np.where(
+        before >= 0, np.take_along_axis(time_s, np.maximum(before, 0), axis=1), carry_t[:, None]
+    )
+    with np.errstate(invalid="ignore"):
+        a = np.exp(-np.maximum(time_s - t_before, 0.0) / tau_s)
+    started = np.isfinite(carry_y)[:, None] | (before >= 0)  # a value before this sample
+    a = np.where(counted, np.where(started & np.isfinite(a), a, 0.0), 1.0)
+    b = np.where(counted, (1.0 - a) * np.where(counted, values, 0.0), 0.0)
+    out = affine_recurrence(a, b, np.where(np.isfinite(carry_y), carry_y, 0.0))
+    out = np.where(started | counted, out, np.nan)
+    ends = last[:, -1]
+    last_t = np.where(ends >= 0, time_s[np.arange(rows), np.maximum(ends, 0)], carry_t)
+    last_y = np.where(ends >= 0, out[:, -1], carry_y)
+    return out, last_t.tolist(), last_y.tolist()
 
 
 @dataclass(frozen=True)
@@ -30,14 +147,13 @@ class Bands(Rule):
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
         profile = self.profile
         if profile.noise_bands > 0:
-            noise, shape = frame.noise, frame.shape
-            if noise is None or len(noise) != shape[0]:
-                raise ValueError(
-                    f"profile {profile.name!r} needs each motor's noise (noise_bands); none given"
-                )
+            noise, shape = _noise_of(frame, profile), frame.shape
             a = np.zeros(shape) if frame.activity_v is None else frame.activity_v
             e = frame.pairing_error_rad_s
-            speed, current = np.empty(shape), np.empty(shape)
+            if frame.sigma_speed_rad_s is not None and frame.sigma_current_a is not None:
+                speed, current = frame.sigma_speed_rad_s.copy(), frame.sigma_current_a.copy()
+            else:
+                speed, current = _sigmas(frame, noise)
             # the torque balance's band, where the profile judges in it: NaN for a motor without its noise
             # (no usable current: nothing to judge; said once where a motor with a current has none)
             torque = np.full(shape, np.nan) if profile.equation_bands > 0 else None
@@ -52,19 +168,21 @@ class Bands(Rule):
             after = frame.after_step_factor
             for r, motor_noise in enumerate(noise):
                 e_r = None if e is None else e[r]
-                speed[r], current[r] = motor_noise.sigmas(a[r], e_r)
-                widen: NDArray[np.float64] | float = 1.0  # grown beyond the conditions, after a step
+                widen_speed: NDArray[np.float64] | float = 1.0  # beyond the conditions, after a step
+                widen_current: NDArray[np.float64] | float = 1.0
                 if exponent > 0:
-                    widen = motor_noise.growth(
+                    grown = motor_noise.growth(
                         frame.omega_model_rad_s[r], profile.range_margin, a[r], e_r, exponent
                     )
+                    widen_speed, widen_current = self.as_siblings_run(frame, r, grown)
                 if after is not None:
-                    widen = widen * np.where(np.isfinite(after[r]), after[r], 1.0)
-                speed[r] *= widen
-                current[r] *= widen
+                    step = np.where(np.isfinite(after[r]), after[r], 1.0)
+                    widen_speed, widen_current = widen_speed * step, widen_current * step
+                speed[r] *= widen_speed
+                current[r] *= widen_current
                 judged_torque = motor_noise.torque_judged
                 if torque is not None and judged_torque is not None:
-                    torque[r] = judged_torque.sigmas(a[r], e_r) * widen
+                    torque[r] = judged_torque.sigmas(a[r], e_r) * np.maximum(widen_speed, widen_current)
             frame.speed_band_rad_s = profile.noise_bands * speed
             frame.current_band_a = profile.noise_bands * current
             frame.current_band_below_a = frame.current_band_a.copy()
@@ -75,6 +193,34 @@ class Bands(Rule):
                 frame.judged_voltage_v, frame.activity_v
             )
         return carries
+
+    def as_siblings_run(
+        self, frame: Frame, row: int, grown: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The growth beyond the conditions of the speed's band and the current's at row ``row``: the
+        excess's, ``grown``, for both (:class:`SiblingBands` bounds it by the siblings')."""
+        return grown, grown
+
+
+@dataclass(frozen=True)
+class SiblingBands(Bands):
+    """:class:`Bands`, grown beyond the noise's conditions no more than the siblings' deviations run
+    (module doc, "Grown as the siblings run"): the vehicle stage runs before it."""
+
+    reads_siblings: ClassVar[bool] = True
+
+    def as_siblings_run(
+        self, frame: Frame, row: int, grown: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        out = []
+        for siblings in (frame.siblings_z2_speed, frame.siblings_z2_current):
+            if siblings is None:
+                out.append(grown)
+                continue
+            with np.errstate(invalid="ignore"):
+                live = self.profile.conditions_siblings * np.sqrt(siblings[row])
+            out.append(np.where(np.isfinite(live), np.minimum(grown, np.maximum(live, 1.0)), grown))
+        return out[0], out[1]
 
 
 def _warn_without_torque_noise(profile_name: str) -> None:

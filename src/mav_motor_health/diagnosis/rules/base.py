@@ -109,6 +109,17 @@ class Frame:
     #: the median of the other motors' torque residuals before each sample (the vehicle stage,
     #: :mod:`..siblings`; None: no stage ran, NaN: too few siblings there)
     torque_siblings_nm: NDArray[np.float64] | None = None
+    #: each judged deviation's square in the motor's identified σ(a, e), low-passed (speed, current; the
+    #: bands' live noise, rules/bands.py; None: not measured), and the median of the other motors' latest
+    #: (the vehicle stage; NaN: too few siblings there)
+    #: each motor's identified σ(a, e) at each sample, speed [rad/s] and current [A] (rules/bands.py,
+    #: where the live noise is measured before the bands; None: worked out by the bands)
+    sigma_speed_rad_s: NDArray[np.float64] | None = None
+    sigma_current_a: NDArray[np.float64] | None = None
+    live_z2_speed: NDArray[np.float64] | None = None
+    live_z2_current: NDArray[np.float64] | None = None
+    siblings_z2_speed: NDArray[np.float64] | None = None
+    siblings_z2_current: NDArray[np.float64] | None = None
     #: the speed the motor is expected to turn at (tree rule 1)
     omega_expected_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
     #: the highest stop speed of each sample [rad/s] (tree rule 1, "The lowest input": a share of the free
@@ -172,7 +183,7 @@ class Rule(ABC):
 
     #: the rule's name: its key in a motor's carry
     name: ClassVar[str]
-    #: whether the rule reads the other motors' torque (:mod:`..siblings`): the vehicle stage runs before it
+    #: whether the rule reads the other motors' values (:mod:`..siblings`): the vehicle stage runs before it
     reads_siblings: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
