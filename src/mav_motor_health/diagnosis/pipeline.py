@@ -227,9 +227,9 @@ def vehicle_stage(
     """The vehicle stage of ``motors`` (:mod:`.siblings`), with what it takes across them: the torque
     where a motor is judged against its siblings' (its noise was measured so), the deviations' live
     noise where ``profile`` grows its bands as the siblings run (``conditions_siblings``); None: neither,
-    no stage (or no motors)."""
+    no stage. Motors not in ``motors`` join the stage when their samples come (:mod:`.siblings`)."""
     quantities: list[str] = []
-    if motors and noise:
+    if noise:
         if any(n.torque_vs_siblings is not None for n in noise.values()):
             quantities.append("torque_residual_nm")
         if profile.grows_as_siblings:
@@ -601,7 +601,7 @@ def diagnose(
     # for a bench file's "motors" (different motors, not one vehicle's) or a vehicle judged without it,
     # whose motors finish one by one (one motor's arrays alive at a time)
     frame_motors = vehicle_motors(table)
-    stage = vehicle_stage(frame_motors, noise, profile)
+    stage = vehicle_stage(frame_motors, noise, profile) if frame_motors else None
     started: list[tuple[int, NDArray[np.intp] | slice, NDArray[np.intp], StartedCall]] = []
     finished: list[tuple[dict[str, NDArray], list[MotorCarry]]] = []
     for motor in ordered.motors():
