@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from ...model.dynamics import affine_recurrence
+from ...model.dynamics import affine_recurrence, previous
 from .base import Frame, Rule
 
 if TYPE_CHECKING:
@@ -117,9 +117,7 @@ def held_average(
     rows, n = values.shape
     index = np.where(counted, np.arange(n)[None, :], -1)
     last = np.maximum.accumulate(index, axis=1)  # the latest counted sample at or before each
-    before = np.empty((rows, n), dtype=np.intp)  # ... and strictly before each
-    before[:, 0] = -1
-    before[:, 1:] = last[:, :-1]
+    before = previous(last, -1).astype(np.intp)  # ... and strictly before each
     t_before = np.where(
         before >= 0, np.take_along_axis(time_s, np.maximum(before, 0), axis=1), carry_t[:, None]
     )
@@ -127,7 +125,7 @@ def held_average(
         a = np.exp(-np.maximum(time_s - t_before, 0.0) / tau_s)
     started = np.isfinite(carry_y)[:, None] | (before >= 0)  # a value before this sample
     a = np.where(counted, np.where(started & np.isfinite(a), a, 0.0), 1.0)
-    b = np.where(counted, (1.0 - a) * np.where(counted, values, 0.0), 0.0)
+    b = (1.0 - a) * np.where(counted, values, 0.0)  # 0 where not counted (a = 1 there)
     out = affine_recurrence(a, b, np.where(np.isfinite(carry_y), carry_y, 0.0))
     out = np.where(started | counted, out, np.nan)
     ends = last[:, -1]

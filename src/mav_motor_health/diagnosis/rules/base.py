@@ -109,13 +109,13 @@ class Frame:
     #: the median of the other motors' torque residuals before each sample (the vehicle stage,
     #: :mod:`..siblings`; None: no stage ran, NaN: too few siblings there)
     torque_siblings_nm: NDArray[np.float64] | None = None
-    #: each judged deviation's square in the motor's identified σ(a, e), low-passed (speed, current; the
-    #: bands' live noise, rules/bands.py; None: not measured), and the median of the other motors' latest
-    #: (the vehicle stage; NaN: too few siblings there)
     #: each motor's identified σ(a, e) at each sample, speed [rad/s] and current [A] (rules/bands.py,
     #: where the live noise is measured before the bands; None: worked out by the bands)
     sigma_speed_rad_s: NDArray[np.float64] | None = None
     sigma_current_a: NDArray[np.float64] | None = None
+    #: each judged deviation's square in the motor's identified σ(a, e), low-passed (speed, current; the
+    #: bands' live noise, rules/bands.py; None: not measured), and the median of the other motors' latest
+    #: (the vehicle stage; NaN: too few siblings there)
     live_z2_speed: NDArray[np.float64] | None = None
     live_z2_current: NDArray[np.float64] | None = None
     siblings_z2_speed: NDArray[np.float64] | None = None
