@@ -2,7 +2,7 @@
 baselines in the same run.
 
     PYTHONPATH=src python benchmarks/bench_agent.py [--seconds 60] [--live-seconds 10] [--rates 50 200]
-        [--vehicle bundled|per-motor]
+        [--vehicle bundled|per-motor|identified]
 
 1. **CPU per sample** (replay of a synthetic six-motor flight at each rate, written as a .tlog, through
    the agent's real feeding path: reader thread, MAVLink parsing, SampleAssembler, HealthMonitor → the
@@ -16,7 +16,11 @@ baselines in the same run.
 ``--vehicle per-motor`` gives the agent a vehicle file with a model per motor, as ``fit`` writes one (the
 bundled motor with R up to 2.5 % and k_e up to 0.25 % apart between the motors: small enough that the test
 vehicle, which flies the bundled motor, stays healthy; the core's work does not depend on the values),
-instead of the bundled motor itself: the case of a user who identified the vehicle.
+instead of the bundled motor itself. ``--vehicle identified`` adds to that file each motor's noise, measured
+as ``fit`` measures it (``identification.with_band_noise``) on another synthetic flight of the same
+vehicle (seed 4): the agent then picks the ``flight_vehicle`` profile, as it does for every user whose
+vehicle file ``fit`` wrote (bands in the vehicle's noise, the sequential test, the vehicle stage), where
+the other two run the ``flight`` profile.
 
 3. **Raspberry Pi 4 estimate**: the same run times the benchmarks-game n-body program in pure Python; a
    Raspberry Pi 4 at 1.5 GHz takes 158.3 s for 5,000,000 steps (chaitanyamehta.github.io, "Performance
@@ -46,10 +50,12 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests" / "agent"))  # the test vehicle (peer.py)
 
 from mav_motor_health.agent import Agent, load_agent_config  # noqa: E402
-from mav_motor_health.config import dump_vehicle_params, load_motor_params  # noqa: E402
+from mav_motor_health.config import dump_vehicle_params, load_motor_params, load_vehicle_params  # noqa: E402
+from mav_motor_health.identification import with_band_noise  # noqa: E402
 from mav_motor_health.model.equations import steady_state  # noqa: E402
 from mav_motor_health.model.vehicle import VehicleParams  # noqa: E402
 from mav_motor_health.publish import dialect  # noqa: E402
+from mav_motor_health.telemetry import sources  # noqa: E402
 
 PI4_NBODY_S = 158.263  # 5,000,000 steps, Raspberry Pi 4 @ 1.5 GHz, performance governor (see docstring)
 PI4_NBODY_STEPS = 5_000_000
@@ -57,8 +63,11 @@ MOTORS = 6
 #: batch_s values timed in the replay part, per rate (one sample per core call is too slow to time at 200 Hz)
 BATCHES = {50.0: (0.0, 0.02, 0.05, 0.1, 0.2), 200.0: (0.02, 0.1)}
 LIVE_BATCHES = (0.1, 0.02)
-#: the vehicle file the agent is given (--vehicle per-motor), None: the bundled motor
+#: the vehicle file the agent is given (--vehicle per-motor or identified), None: the bundled motor
 VEHICLE: str | None = None
+#: the profile the agent is given; None: the one it picks for the vehicle (flight_vehicle where the
+#: vehicle file carries its noise)
+PROFILE: str | None = "flight"
 
 
 def write_per_motor_vehicle(path: Path) -> str:
@@ -69,6 +78,18 @@ def write_per_motor_vehicle(path: Path) -> str:
         for m in range(1, MOTORS + 1)
     }
     path.write_text(dump_vehicle_params(VehicleParams(motor=motor, per_motor=per_motor)), encoding="utf-8")
+    return str(path)
+
+
+def write_identified_vehicle(path: Path, seconds: float) -> str:
+    """:func:`write_per_motor_vehicle` with each motor's noise measured as ``fit`` measures it, on a
+    synthetic flight of the same vehicle (another seed than the one replayed)."""
+    write_per_motor_vehicle(path)
+    vehicle = load_vehicle_params(path)
+    flight = path.with_name("identification.tlog")
+    write_flight(flight, seconds, 50.0, seed=4)
+    vehicle = with_band_noise(vehicle, [sources.read(flight)])
+    path.write_text(dump_vehicle_params(vehicle), encoding="utf-8")
     return str(path)
 
 
@@ -120,7 +141,7 @@ def parse_only(path: Path) -> tuple[float, int]:
 
 
 def agent_replay(path: Path, batch_s: float) -> tuple[float, int]:
-    config = load_agent_config(None, connect=str(path), params=VEHICLE, profile="flight")
+    config = load_agent_config(None, connect=str(path), params=VEHICLE, profile=PROFILE)
     config = config.with_overrides(batch_s=batch_s)
     dialect.load()
 
@@ -169,7 +190,7 @@ def live(seconds: float, rate_hz: float, batch_s: float) -> dict[str, float]:
     detect: list[float] = []
 
     async def main() -> tuple[float, float]:
-        config = load_agent_config(None, connect=f"udpout:127.0.0.1:{port}", params=VEHICLE, profile="flight")
+        config = load_agent_config(None, connect=f"udpout:127.0.0.1:{port}", params=VEHICLE, profile=PROFILE)
         # the test vehicle's ESCs report at the stream rate: ask for rate_hz to diagnose 6 × rate_hz samples
         # (the agent's default asks for 200 Hz, which with ESCs reporting at 10–50 Hz adds only parsing)
         config = config.with_overrides(esc_rate_hz=rate_hz, batch_s=batch_s)
@@ -271,19 +292,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--nbody-steps", type=int, default=300_000)
     ap.add_argument(
         "--vehicle",
-        choices=("bundled", "per-motor"),
+        choices=("bundled", "per-motor", "identified"),
         default="bundled",
-        help="the bundled motor, or a vehicle file with a model per motor (as fit writes)",
+        help="the bundled motor, a vehicle file with a model per motor (as fit writes), or one that also"
+        " carries each motor's noise (as fit writes it: the agent then runs flight_vehicle)",
     )
     args = ap.parse_args(argv)
-    global VEHICLE
+    global VEHICLE, PROFILE
     keep = tempfile.TemporaryDirectory()
     if args.vehicle == "per-motor":
         VEHICLE = write_per_motor_vehicle(Path(keep.name) / "vehicle.toml")
+    elif args.vehicle == "identified":
+        VEHICLE, PROFILE = write_identified_vehicle(Path(keep.name) / "vehicle.toml", 60.0), None
 
     print(
         f"python {sys.version.split()[0]} on {sys.platform}; flights of {args.seconds:.0f} s, {MOTORS} motors;"
-        f" vehicle: {args.vehicle}"
+        f" vehicle: {args.vehicle}; profile: {load_agent_config(None, params=VEHICLE, profile=PROFILE).profile.name}"
     )
     replay: dict[tuple[float, float], float] = {}
     parse: dict[float, float] = {}

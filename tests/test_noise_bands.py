@@ -12,7 +12,7 @@ import pytest
 
 from mav_motor_health.cli import main
 from mav_motor_health.config import dump_vehicle_params, load_motor_params, load_profile, load_vehicle_params
-from mav_motor_health.diagnosis.noise import BandNoise, band_noise_of, measure_band_noise
+from mav_motor_health.diagnosis.noise import BandNoise, NoiseRows, band_noise_of, measure_band_noise
 from mav_motor_health.diagnosis.pipeline import StreamingDiagnoser, diagnose
 from mav_motor_health.diagnosis.plausibility import SensorIssue
 from mav_motor_health.diagnosis.states import MotorState
@@ -637,3 +637,58 @@ def test_samples_waiting_after_a_step_are_judged_where_the_vehicle_measured_them
     speed, _ = plain[1].sigmas(after["input_activity_v"])
     m1 = (after["motor"] == 1) & judged_now
     np.testing.assert_allclose(after["speed_band_rad_s"][m1], profile.noise_bands * (speed * factor)[m1])
+
+
+def test_noise_rows_give_each_motor_what_its_own_noise_gives() -> None:
+    """A call of six motors reads their noise as rows (noise.py ``NoiseRows``, one pass for every motor):
+    σ(a, e), the identified speed range, how far beyond the conditions, the growth there, the judged
+    region and the widening after a step come out, row by row, exactly as each motor's own
+    ``BandNoise`` gives them, whatever each motor has or lacks (a range, limits, the pairing's growth,
+    a usable current, the after-step bins)."""
+    rng = np.random.default_rng(41)
+    nan = math.nan
+    noise = [
+        BandNoise(3.0, 0.2, 4.0, 0.5, omega_low_rad_s=300.0, omega_high_rad_s=700.0, activity_high_v=0.3),
+        BandNoise(2.0, nan, 1.0, 0.0, pairing_error_high_rad_s=5.0, speed_per_pairing=0.4),  # no current
+        BandNoise(
+            5.0, 0.4, 0.0, 0.2, activity_high_v=0.1, pairing_error_high_rad_s=0.0, after_step=(3, 2, 1.5, 1)
+        ),
+        BandNoise(1.0, 0.1, omega_low_rad_s=450.0, omega_high_rad_s=500.0, current_a_per_pairing=0.02),
+        BandNoise(4.0, 0.3, 2.0, 1.0, activity_high_v=0.0, after_step=(2.0, nan, 1.2, 1.0)),
+        BandNoise(6.0, 0.5, 3.0, 0.3, omega_low_rad_s=200.0, omega_high_rad_s=nan, activity_high_v=0.5),
+    ]
+    rows = NoiseRows.of(noise)
+    shape = (len(noise), 200)
+    activity = np.abs(rng.normal(0.0, 0.4, shape))
+    activity[rng.random(shape) < 0.05] = nan
+    pairing = np.abs(rng.normal(0.0, 6.0, shape))
+    omega = rng.uniform(100.0, 800.0, shape)
+    since = np.where(rng.random(shape) < 0.3, nan, rng.uniform(0.0, 1.0, shape))
+    got = {
+        "sigmas": rows.sigmas(activity, pairing),
+        "sigmas without pairing": rows.sigmas(activity),
+        "range": rows.in_speed_range(omega, 0.1),
+        "beyond": rows.beyond_conditions(0.1, activity, pairing),
+        "growth": rows.growth(omega, 0.1, activity, pairing, 2.0),
+        "known": rows.known(omega, 0.1, activity, pairing, 5.0),
+        "after step": rows.after_step_factor(since, 0.6),
+    }
+    for r, own in enumerate(noise):
+        want = {
+            "sigmas": own.sigmas(activity[r], pairing[r]),
+            "sigmas without pairing": own.sigmas(activity[r]),
+            "range": own.in_speed_range(omega[r], 0.1),
+            "beyond": own.beyond_conditions(0.1, activity[r], pairing[r]),
+            "growth": own.growth(omega[r], 0.1, activity[r], pairing[r], 2.0),
+            "known": own.known(omega[r], 0.1, activity[r], pairing[r], 5.0),
+            "after step": own.after_step_factor(since[r], 0.6),
+        }
+        for name, value in want.items():
+            for mine, theirs in zip(
+                *((got[name], value) if name.startswith("sigmas") else ((got[name],), (value,)))
+            ):
+                np.testing.assert_array_equal(mine[r], theirs, err_msg=f"{name}, motor {r + 1}")
+    # the rows differ, so a row read with another motor's noise would show
+    assert not np.array_equal(got["after step"][2], got["after step"][4])
+    assert got["range"][0].mean() != got["range"][3].mean()
+    assert np.isinf(got["sigmas"][1][1]).all() and np.isfinite(got["sigmas"][1][0]).all()

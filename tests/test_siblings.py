@@ -5,11 +5,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from mav_motor_health.diagnosis.siblings import SiblingTorque, median_of_finite
+from mav_motor_health.diagnosis.siblings import VehicleStage, median_of_finite
 
 
 def rows(values: list[list[float]]) -> np.ndarray:
     return np.array(values, dtype=float)
+
+
+class SiblingTorque(VehicleStage):
+    """The stage with the torque alone (one quantity)."""
+
+    def reference(self, motors, time_s, values, counts, max_age_s):  # type: ignore[no-untyped-def]
+        return self.references(motors, time_s, {"torque_residual_nm": values}, counts, max_age_s)[
+            "torque_residual_nm"
+        ]
 
 
 def test_a_sample_sees_the_siblings_that_arrived_before_it_time_then_motor_number() -> None:
@@ -79,3 +88,50 @@ def test_pieces_in_arrival_order_give_what_the_whole_gives() -> None:
 def test_the_median_of_finite_values_needs_enough_of_them() -> None:
     values = rows([[1.0, 5.0, np.nan, 3.0], [np.nan, np.nan, 2.0, np.nan], [4.0, 1.0, 2.0, 3.0]])
     np.testing.assert_array_equal(median_of_finite(values, 2), [3.0, np.nan, 2.5])
+
+
+def test_every_quantity_in_one_pass_gives_what_each_alone_gives() -> None:
+    """The stage takes several quantities in one pass (the torque and the deviations' live noise): each
+    one's references, whole and in pieces with the latest values carried, are those of a stage that
+    takes it alone, though the quantities are lost at different samples and so carry different latest
+    values and times."""
+    rng = np.random.default_rng(23)
+    motors = [1, 2, 3, 4, 5, 6]
+    n = 300
+    times = np.array([np.sort(rng.uniform(0, 15, n)) for _ in motors])
+    names = ("torque_residual_nm", "live_z2_speed", "live_z2_current")
+    values = {}
+    for q, name in enumerate(names):
+        v = np.cos((0.2 + 0.1 * q) * times) + 0.05 * rng.standard_normal(times.shape)
+        v[rng.random(v.shape) < 0.05 + 0.1 * q] = np.nan
+        values[name] = v
+    age = np.full(times.shape, 0.2)
+    cuts = [*np.sort(rng.uniform(0, 15, 25)), np.inf]
+
+    def in_pieces(stage: VehicleStage, given: tuple[str, ...]) -> dict[str, np.ndarray]:
+        got = {name: np.full(times.shape, np.nan) for name in given}
+        done = [0] * 6
+        for cut in cuts:
+            counts = [int(np.searchsorted(t, cut, side="right")) - d for t, d in zip(times, done)]
+            width = max(max(counts), 1)
+            t_rows = np.zeros((6, width))
+            v_rows = {name: np.full((6, width), np.nan) for name in given}
+            for r, (d, k) in enumerate(zip(done, counts)):
+                t_rows[r, :k] = times[r, d : d + k]
+                for name in given:
+                    v_rows[name][r, :k] = values[name][r, d : d + k]
+            out = stage.references(motors, t_rows, v_rows, counts, np.full((6, width), 0.2))
+            for r, (d, k) in enumerate(zip(done, counts)):
+                for name in given:
+                    got[name][r, d : d + k] = out[name][r, :k]
+            done = [d + k for d, k in zip(done, counts)]
+        return got
+
+    together = VehicleStage(list(motors)).references(motors, times, values, [n] * 6, age)
+    pieces = in_pieces(VehicleStage(list(motors)), names)
+    for name in names:
+        alone = VehicleStage(list(motors)).references(motors, times, {name: values[name]}, [n] * 6, age)
+        assert np.isfinite(alone[name]).mean() > 0.3
+        np.testing.assert_array_equal(together[name], alone[name], err_msg=name)
+        np.testing.assert_array_equal(pieces[name], alone[name], err_msg=name)
+        np.testing.assert_array_equal(in_pieces(VehicleStage(list(motors)), (name,))[name], alone[name])

@@ -78,6 +78,7 @@ fact, not a statistical one) and take precedence over the directions.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -100,7 +101,9 @@ __all__ = [
     "equation_evidence",
     "named_evidence",
     "report_credit",
+    "report_credits",
     "sequential_alarms",
+    "sequential_alarms_rows",
 ]
 
 #: the directions tested, in the order of the evidence rows (:func:`direction_evidence`)
@@ -220,20 +223,38 @@ def report_credit(
     the sums start afresh anyway); with none yet, its own interval if not longer than that, else 0.
     Summed over a stretch of reports, that is the stretch's time when no report was lost; a lost report's
     time is spread thinly over the next reports instead of counting once more for the one after it, and
-    reports that arrive in bursts (two per radio packet) each count the stream's interval."""
-    d = np.diff(time_s, prepend=carry.stream_s)
-    history = np.concatenate([np.asarray(carry.intervals, dtype=float), d])
+    reports that arrive in bursts (two per radio packet) each count the stream's interval.
+    (:func:`report_credits` for rows of motors.)"""
+    time_s = np.asarray(time_s, dtype=float)
+    credit, intervals = report_credits(time_s[None], [time_s.size], [carry], max_gap_s)
+    return credit[0], intervals[0]
+
+
+def report_credits(
+    time_s: NDArray[np.float64], counts: Sequence[int], carries: Sequence[SequentialCarry], max_gap_s: float
+) -> tuple[NDArray[np.float64], list[tuple[float, ...]]]:
+    """:func:`report_credit` of rows of motors at once: ``time_s`` one row per motor, each row's first
+    ``counts`` samples its own (the credit of the rest is not defined); each row's intervals to carry."""
+    rows, n = time_s.shape
+    k = CREDIT_INTERVALS
+    stream = np.array([c.stream_s for c in carries], dtype=float)
+    d = np.diff(time_s, axis=1, prepend=stream[:, None])
+    history = np.concatenate(
+        [np.array([c.intervals for c in carries], dtype=float).reshape(rows, k), d], axis=1
+    )
     valid = history <= max_gap_s
-    total = np.concatenate([[0.0], np.cumsum(np.where(valid, history, 0.0))])
-    count = np.concatenate([[0], np.cumsum(valid)])
-    k, n = CREDIT_INTERVALS, d.size
+    total = np.concatenate([np.zeros((rows, 1)), np.cumsum(np.where(valid, history, 0.0), axis=1)], axis=1)
+    count = np.concatenate([np.zeros((rows, 1), dtype=np.intp), np.cumsum(valid, axis=1)], axis=1)
     # the window of the k intervals before report j: history[j : j + k]
-    window_s = total[k : k + n] - total[:n]
-    window_n = count[k : k + n] - count[:n]
+    window_s = total[:, k : k + n] - total[:, :n]
+    window_n = count[:, k : k + n] - count[:, :n]
     own = np.where(d <= max_gap_s, d, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         credit = np.where(window_n > 0, window_s / np.maximum(window_n, 1), own)
-    return credit, tuple(float(x) for x in history[-k:])
+    # each row's last k intervals: those of its own samples (its count), the carried ones before them
+    ends = np.asarray(counts, dtype=np.intp)[:, None] + np.arange(k)[None, :]
+    last = np.take_along_axis(history, ends, axis=1).tolist()
+    return credit, [tuple(row) for row in last]
 
 
 def _max_of_two_half_normals(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -344,77 +365,141 @@ def sequential_alarms(
     weighs its own report's time (:func:`report_credit`; an unjudged one's is not lent to it). The sums are exact Lindley
     recursions, evaluated in closed form (S_n = W_n − min(−S_0, min_j W_j) over each stretch without a
     gap), so any split of the samples into calls gives the same result (up to rounding, which the
-    comparison with h allows for: :data:`_H_ROUNDING`)."""
+    comparison with h allows for: :data:`_H_ROUNDING`). (:func:`sequential_alarms_rows` for rows of
+    motors.)"""
+    t = np.asarray(time_s, dtype=float)
+    announced, level, carries = sequential_alarms_rows(
+        rule,
+        t[None],
+        np.asarray(evidence, dtype=float)[:, None],
+        np.asarray(observation_s, dtype=float)[None],
+        np.asarray(judged, dtype=bool)[None],
+        [t.size],
+        [carry],
+        max_gap_s,
+        tau_s,
+    )
+    return announced[0], level[0], carries[0]
+
+
+def sequential_alarms_rows(
+    rule: SequentialRule,
+    time_s: NDArray[np.float64],
+    evidence: NDArray[np.float64],
+    observation_s: NDArray[np.float64],
+    judged: NDArray[np.bool_],
+    counts: Sequence[int],
+    carries: Sequence[SequentialCarry],
+    max_gap_s: float,
+    tau_s: float,
+) -> tuple[NDArray[np.int8], NDArray[np.float64], list[SequentialCarry]]:
+    """:func:`sequential_alarms` of rows of motors at once (the live agent's call of every motor's few
+    samples): ``time_s``, ``observation_s``, ``judged`` one row per motor, ``evidence`` directions ×
+    rows × samples, each row's first ``counts`` samples its own (the results of the rest are not
+    defined); each row's new carry.
+
+    Every row whose samples start the sums afresh at most at its first judged one (the rule's calls in the
+    live agent, but for a gap inside the call) is summed at once: its unjudged samples step by exactly 0,
+    which leaves each sum and running minimum as it was, so the values are those of its judged samples
+    alone. Each stretch of the others (a whole log with its gaps) is summed on its own."""
     h = rule.threshold(tau_s)
     k = rule.reference_sigmas
     t = np.asarray(time_s, dtype=float)
-    n = t.size
+    rows, n = t.shape
     directions = len(DIRECTIONS)
-    announced = np.zeros(n, dtype=np.int8)
-    level = np.zeros(n)
     if n == 0:
-        return announced, level, carry
-    idx = np.flatnonzero(judged)
-    sums = np.array(carry.sums, dtype=float)
-    alarmed = np.array(carry.alarmed, dtype=bool)
-    last_s = carry.last_s
+        return np.zeros((rows, 0), dtype=np.int8), np.zeros((rows, 0)), list(carries)
+    lengths = np.asarray(counts, dtype=np.intp)
+    judged = np.asarray(judged, dtype=bool) & (np.arange(n)[None, :] < lengths[:, None])
+    carried_sums = np.array([c.sums for c in carries], dtype=float).reshape(rows, directions).T
+    carried_alarms = np.array([c.alarmed for c in carries], dtype=bool).reshape(rows, directions).T
+    last_s = np.array([c.last_s for c in carries], dtype=float)
     # the time each report stands for (an unjudged one's counts for nothing)
-    credit, intervals = report_credit(t, carry, max_gap_s)
-    # the state at each sample: that of the last judged sample at or before it (the carry's before any)
-    s_at = np.tile(sums[:, None], (1, n))
-    a_at = np.tile(alarmed[:, None], (1, n))
-    if idx.size:
-        tj = t[idx]
-        dt = np.diff(tj, prepend=last_s)
-        fresh = ~(dt <= max_gap_s)  # a gap (or the first sample ever): the sums start afresh
-        # each judged sample stands for its own report (:func:`report_credit`)
-        dt = np.where(fresh, 0.0, credit[idx])
-        steps = (np.minimum(evidence[:, idx], rule.evidence_caps(h)) - k) * (
-            dt / np.asarray(observation_s, dtype=float)[idx]
-        )
-        starts = np.flatnonzero(fresh)
-        bounds = (
-            [0, *starts.tolist(), idx.size] if (starts.size == 0 or starts[0] != 0) else [*starts, idx.size]
-        )
-        s_j = np.empty((directions, idx.size))
-        a_j = np.empty((directions, idx.size), dtype=bool)
+    credit, intervals = report_credits(t, counts, carries, max_gap_s)
+    # each judged sample's time since the judged one before it (the carried one's before the first)
+    position = np.arange(n)[None, :]
+    latest = np.maximum.accumulate(np.where(judged, position, -1), axis=1)  # at or before each
+    before = np.concatenate([np.full((rows, 1), -1), latest[:, :-1]], axis=1)
+    t_before = np.where(before >= 0, np.take_along_axis(t, np.maximum(before, 0), axis=1), last_s[:, None])
+    fresh = judged & ~(t - t_before <= max_gap_s)  # a gap (or the first sample ever): afresh
+    dt = np.where(fresh, 0.0, credit)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        steps = (np.minimum(evidence, rule.evidence_caps(h)[:, :, None]) - k) * (
+            dt / np.asarray(observation_s, dtype=float)
+        )[None]
+    steps = np.where(judged[None], steps, 0.0)
+    first = np.argmax(judged, axis=1)  # each row's first judged sample (0 where none)
+    has_judged = judged.any(axis=1)
+    afresh_first = has_judged & fresh[np.arange(rows), first]
+    inside = fresh.sum(axis=1) - afresh_first  # stretches started afresh after the first judged sample
+    sums = np.empty((directions, rows, n))
+    alarms = np.empty((directions, rows, n), dtype=bool)
+    # rows of one stretch (every sample from the row's start: before its first judged one it steps 0)
+    one = np.flatnonzero(inside == 0)
+    if one.size:
+        start_sum = np.where(afresh_first[one], 0.0, carried_sums[:, one])
+        start_alarm = carried_alarms[:, one] & ~afresh_first[one]
+        sums[:, one], alarms[:, one] = _lindley(steps[:, one], start_sum, start_alarm, h)
+    for r in np.flatnonzero(inside > 0).tolist():
+        bounds = [0, *np.flatnonzero(fresh[r]).tolist(), n]
+        start_sum, start_alarm = carried_sums[:, r], carried_alarms[:, r]
         for lo, hi in zip(bounds[:-1], bounds[1:]):
             if hi <= lo:
                 continue
-            start_sum = np.zeros(directions) if fresh[lo] else sums
-            start_alarm = np.zeros(directions, dtype=bool) if fresh[lo] else alarmed
-            w = np.cumsum(steps[:, lo:hi], axis=1)
-            lowest = np.minimum(np.minimum.accumulate(w, axis=1), -start_sum[:, None])
-            seg = w - lowest
-            s_j[:, lo:hi] = seg
-            a_j[:, lo:hi] = _latched(seg, h, start_alarm)
-            sums, alarmed = seg[:, -1].copy(), a_j[:, hi - 1].copy()
-        last_s = float(tj[-1])
-        # carry the judged samples' states forward to the samples after them
-        pos = np.maximum.accumulate(np.where(judged, np.arange(n), -1))
-        where = np.searchsorted(idx, pos)
-        have = pos >= 0
-        s_at[:, have] = s_j[:, where[have]]
-        a_at[:, have] = a_j[:, where[have]]
-    ratio = np.where(a_at, s_at / h, 0.0)
+            if fresh[r, lo]:
+                start_sum, start_alarm = np.zeros(directions), np.zeros(directions, dtype=bool)
+            seg, latched = _lindley(steps[:, r : r + 1, lo:hi], start_sum[:, None], start_alarm[:, None], h)
+            sums[:, r, lo:hi], alarms[:, r, lo:hi] = seg[:, 0], latched[:, 0]
+            start_sum, start_alarm = seg[:, 0, -1], latched[:, 0, -1]
+    # before a row's first judged sample: the carried state
+    ahead = (position < np.where(has_judged, first, n)[:, None])[None]
+    sums = np.where(ahead, carried_sums[:, :, None], sums)
+    alarms = np.where(ahead, carried_alarms[:, :, None], alarms)
+    ratio = np.where(alarms, sums / h, 0.0)
     strongest = np.argmax(ratio, axis=0)
-    any_alarm = a_at.any(axis=0)
     codes = np.array([int(d) for d in DIRECTIONS], dtype=np.int8)
-    announced = np.where(any_alarm, codes[strongest], MotorState.NORMAL).astype(np.int8)
-    level = (s_at / h).max(axis=0)
-    new = SequentialCarry(
-        sums=tuple(float(x) for x in sums),
-        alarmed=tuple(bool(x) for x in alarmed),
-        last_s=last_s,
-        stream_s=float(t[-1]),
-        intervals=intervals,
-    )
+    announced = np.where(alarms.any(axis=0), codes[strongest], MotorState.NORMAL).astype(np.int8)
+    level = (sums / h).max(axis=0)
+    padding = position >= lengths[:, None]  # beyond a row's own samples: NORMAL, no level
+    announced[padding], level[padding] = MotorState.NORMAL, np.nan
+    # each row's carry: its last sample's state (its last judged one's, or the carried one)
+    end = np.maximum(lengths - 1, 0)
+    end_sums = sums[:, np.arange(rows), end].T.tolist()
+    end_alarms = alarms[:, np.arange(rows), end].T.tolist()
+    last_judged = latest[np.arange(rows), end]
+    new = []
+    for r, carry in enumerate(carries):
+        if lengths[r] == 0:
+            new.append(carry)
+            continue
+        new.append(
+            SequentialCarry(
+                sums=tuple(end_sums[r]),
+                alarmed=tuple(end_alarms[r]),
+                last_s=float(t[r, last_judged[r]]) if last_judged[r] >= 0 else carry.last_s,
+                stream_s=float(t[r, end[r]]),
+                intervals=intervals[r],
+            )
+        )
     return announced, level, new
 
 
+def _lindley(
+    steps: NDArray[np.float64], start_sum: NDArray[np.float64], start_alarm: NDArray[np.bool_], h: float
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The CUSUM ``S ← max(0, S + step)`` along the last axis of ``steps`` (directions × rows × samples)
+    from ``start_sum`` (directions × rows), in closed form: ``S_n = W_n − min(−S_0, min_j W_j)``; and
+    the alarm at each sample (:func:`_latched`, ``start_alarm`` carried in)."""
+    w = np.cumsum(steps, axis=-1)
+    lowest = np.minimum(np.minimum.accumulate(w, axis=-1), -start_sum[..., None])
+    sums = w - lowest
+    return sums, _latched(sums, h, start_alarm)
+
+
 def _latched(sums: NDArray[np.float64], h: float, start: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """Alarm at each sample: S reached h since it was last 0 (``start``: an alarm carried in)."""
-    pos = np.arange(sums.shape[1])
-    last_zero = np.maximum.accumulate(np.where(sums <= 0.0, pos, -1), axis=1)
-    last_cross = np.maximum.accumulate(np.where(sums >= h * (1.0 - _H_ROUNDING), pos, -1), axis=1)
-    return (last_cross > last_zero) | (start[:, None] & (last_zero < 0))
+    """Alarm at each sample (along the last axis): S reached h since it was last 0 (``start``: an alarm
+    carried in)."""
+    pos = np.arange(sums.shape[-1])
+    last_zero = np.maximum.accumulate(np.where(sums <= 0.0, pos, -1), axis=-1)
+    last_cross = np.maximum.accumulate(np.where(sums >= h * (1.0 - _H_ROUNDING), pos, -1), axis=-1)
+    return (last_cross > last_zero) | (start[..., None] & (last_zero < 0))

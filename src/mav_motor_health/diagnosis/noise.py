@@ -93,6 +93,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -107,6 +108,7 @@ __all__ = [
     "NOISE_KEYS",
     "BandNoise",
     "EquationNoise",
+    "NoiseRows",
     "band_noise_of",
     "measure_band_noise",
     "require_noise",
@@ -222,8 +224,169 @@ class EquationNoise:
         return _grown(self.sigma, self.per_activity, self.per_pairing, a, e)
 
 
+class _ConditionsMath:
+    """What a motor's band noise says at given conditions, written elementwise once for
+    :class:`BandNoise` (its numbers floats) and :class:`NoiseRows` (columns, one row per motor)."""
+
+    speed_rad_s: Any
+    current_a: Any
+    speed_rad_s_per_v: Any
+    current_a_per_v: Any
+    omega_low_rad_s: Any
+    omega_high_rad_s: Any
+    activity_high_v: Any
+    speed_per_pairing: Any
+    current_a_per_pairing: Any
+    pairing_error_high_rad_s: Any
+    #: the widening after a step in each of :data:`AFTER_STEP_BINS` bins, one row per motor (NaN: not
+    #: measured)
+    after_step_table: NDArray[np.float64]
+
+    def sigmas(
+        self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """σ of the speed [rad/s] and current [A] deviations at each input activity [V] (and pairing error
+        [rad/s], where given)."""
+        a, e = _conditions(activity_v, pairing_error_rad_s)
+        speed = _grown(self.speed_rad_s, self.speed_rad_s_per_v, self.speed_per_pairing, a, e)
+        current = _grown(self.current_a, self.current_a_per_v, self.current_a_per_pairing, a, e)
+        # no usable current: nothing to compare with
+        current = np.where(np.isfinite(self.current_a), current, np.inf)
+        return speed, current
+
+    def in_speed_range(self, omega_model_rad_s: ArrayLike, margin: float) -> NDArray[np.bool_]:
+        """Where the model speed lies in the range the healthy flight covered, widened by ``margin`` (a
+        share of the range's ends); everywhere where the range is not known."""
+        w = np.asarray(omega_model_rad_s, dtype=float)
+        low, high = self.omega_low_rad_s, self.omega_high_rad_s
+        with np.errstate(invalid="ignore"):
+            inside = (w >= (1.0 - margin) * low) & (w <= (1.0 + margin) * high)
+        return np.where(np.isfinite(low) & np.isfinite(high), inside, True)
+
+    def beyond_conditions(
+        self, margin: float, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
+        """How far each sample lies beyond the conditions σ was measured in: the larger of its input
+        activity over the flight's busiest and its pairing error (where given) over the flight's loosest,
+        those widened by ``margin``; at most 1 within both (0 where neither limit is known)."""
+        excess = np.zeros(np.broadcast_shapes(np.shape(activity_v), np.shape(self.activity_high_v)))
+        for values, high in (
+            (activity_v, self.activity_high_v),
+            (pairing_error_rad_s, self.pairing_error_high_rad_s),
+        ):
+            if values is None:
+                continue
+            x, limit = nan_to_zero(np.asarray(values, dtype=float)), (1.0 + margin) * np.asarray(high)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(limit > 0, x / limit, np.where(x > 0, np.inf, 0.0))
+            # a limit not known: nothing beyond it
+            excess = np.maximum(excess, np.where(np.isfinite(high), ratio, 0.0))
+        return excess
+
+    def known(
+        self,
+        omega_model_rad_s: ArrayLike,
+        margin: float,
+        activity_v: ArrayLike | None = None,
+        pairing_error_rad_s: ArrayLike | None = None,
+        reach: float = 1.0,
+    ) -> NDArray[np.bool_]:
+        """Where the model speed lies in the range the healthy flight covered, widened by ``margin`` (a
+        share of the range's ends), and the input activity and the pairing error (where given) are at most
+        ``reach`` times the flight's highest, widened alike; everywhere where a range is not known."""
+        inside = self.in_speed_range(omega_model_rad_s, margin)
+        if activity_v is not None or pairing_error_rad_s is not None:
+            shape = np.shape(omega_model_rad_s)
+            activity = np.zeros(shape) if activity_v is None else activity_v
+            inside &= self.beyond_conditions(margin, activity, pairing_error_rad_s) <= reach
+        return inside
+
+    def growth(
+        self,
+        omega_model_rad_s: ArrayLike,
+        margin: float,
+        activity_v: ArrayLike,
+        pairing_error_rad_s: ArrayLike | None,
+        exponent: float,
+    ) -> NDArray[np.float64]:
+        """The factor σ is multiplied by beyond the conditions it was measured in (module doc, "Beyond the
+        measured conditions"): ``excess ** exponent`` where :meth:`beyond_conditions` exceeds 1 and the
+        model speed lies in the identified range; 1 elsewhere (beyond the range only a propeller that lost
+        its load is judged, against σ as measured: rules/judged.py)."""
+        excess = np.maximum(self.beyond_conditions(margin, activity_v, pairing_error_rad_s), 1.0)
+        grown = np.where(np.isfinite(excess), excess, 1.0) ** exponent
+        return np.where(self.in_speed_range(omega_model_rad_s, margin), grown, 1.0)
+
+    def after_step_factor(self, since_step_s: ArrayLike, settle_s: float) -> NDArray[np.float64]:
+        """How many times wider σ is at each sample's time since the last input step [s] (module doc,
+        "After an input step"): 1 where the wait of ``settle_s`` is over (or the time is NaN), the
+        measured widening of the sample's bin within it, NaN where that was not measured (not judged).
+        (:class:`NoiseRows`: rows × samples, each row its motor's.)"""
+        since = np.asarray(since_step_s, dtype=float)
+        factor = np.ones(since.shape)
+        within = np.isfinite(since) & (since < settle_s)
+        if not within.any():
+            return factor
+        if not settle_s > 0:
+            factor[within] = np.nan
+            return factor
+        table = self.after_step_table  # one row of bins per motor, NaN where not measured
+        row = (
+            np.zeros(since.shape, dtype=np.intp)
+            if table.shape[0] == 1
+            else np.broadcast_to(np.arange(table.shape[0])[:, None], since.shape)
+        )
+        bins = np.clip((since[within] / settle_s * AFTER_STEP_BINS).astype(int), 0, AFTER_STEP_BINS - 1)
+        factor[within] = table[row[within], bins]
+        return factor
+
+
 @dataclass(frozen=True)
-class BandNoise:
+class NoiseRows(_ConditionsMath):
+    """Several motors' :class:`BandNoise`, each number a column with one row per motor: a call of every
+    motor's samples (rows × samples) gets from each method, row by row, what each motor's own gives,
+    in one pass instead of one per motor."""
+
+    speed_rad_s: NDArray[np.float64]
+    current_a: NDArray[np.float64]
+    speed_rad_s_per_v: NDArray[np.float64]
+    current_a_per_v: NDArray[np.float64]
+    omega_low_rad_s: NDArray[np.float64]
+    omega_high_rad_s: NDArray[np.float64]
+    activity_high_v: NDArray[np.float64]
+    speed_per_pairing: NDArray[np.float64]
+    current_a_per_pairing: NDArray[np.float64]
+    pairing_error_high_rad_s: NDArray[np.float64]
+    after_step_table: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, noise: Sequence[BandNoise]) -> NoiseRows:
+        """The rows of ``noise``, in its order."""
+        columns = {
+            name: np.array([getattr(n, name) for n in noise], dtype=float).reshape(-1, 1)
+            for name in _ROW_NUMBERS
+        }
+        table = np.concatenate([n.after_step_table for n in noise]).reshape(-1, AFTER_STEP_BINS)
+        return cls(**columns, after_step_table=table)
+
+
+#: the numbers of :class:`_ConditionsMath`, in :class:`NoiseRows`' order
+_ROW_NUMBERS = (
+    "speed_rad_s",
+    "current_a",
+    "speed_rad_s_per_v",
+    "current_a_per_v",
+    "omega_low_rad_s",
+    "omega_high_rad_s",
+    "activity_high_v",
+    "speed_per_pairing",
+    "current_a_per_pairing",
+    "pairing_error_high_rad_s",
+)
+
+
+@dataclass(frozen=True)
+class BandNoise(_ConditionsMath):
     """One motor's healthy spread of the judged deviations: σ(a) = √(σ₀² + (c·a)²) for speed and current
     (current NaN: the ESC reports no usable current, the speed-only path judges)."""
 
@@ -279,6 +442,13 @@ class BandNoise:
         return self.torque is not None or self.torque_vs_siblings is not None
 
     @property
+    def after_step_table(self) -> NDArray[np.float64]:  # type: ignore[override]
+        """:attr:`after_step` as one row of :data:`AFTER_STEP_BINS` bins (NaN: not measured)."""
+        if len(self.after_step) != AFTER_STEP_BINS:
+            return np.full((1, AFTER_STEP_BINS), np.nan)
+        return np.asarray(self.after_step, dtype=float).reshape(1, AFTER_STEP_BINS)
+
+    @property
     def torque_judged(self) -> EquationNoise | None:
         """The torque noise the profile's ``equation_bands`` judges with (:mod:`.rules.equations`): against
         the siblings where measured, else the torque's own unless read through the duty; None: not
@@ -288,18 +458,6 @@ class BandNoise:
         if self.torque is not None and not self.torque.through_duty:
             return self.torque
         return None
-
-    def sigmas(
-        self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """σ of the speed [rad/s] and current [A] deviations at each input activity [V] (and pairing error
-        [rad/s], where given)."""
-        a, e = _conditions(activity_v, pairing_error_rad_s)
-        speed = _grown(self.speed_rad_s, self.speed_rad_s_per_v, self.speed_per_pairing, a, e)
-        current = _grown(self.current_a, self.current_a_per_v, self.current_a_per_pairing, a, e)
-        if not math.isfinite(self.current_a):
-            current = np.full(a.shape, np.inf)  # no usable current: nothing to compare with
-        return speed, current
 
     def as_mapping(self) -> dict[str, float]:
         """The ``[noise.N]`` keys of a vehicle file (the pairing's only where measured: a file reads the
@@ -363,83 +521,6 @@ class BandNoise:
             torque_vs_siblings=_equation_of(values, EQUATION_KEYS["torque_vs_siblings"]),
         )
 
-    def after_step_factor(self, since_step_s: ArrayLike, settle_s: float) -> NDArray[np.float64]:
-        """How many times wider σ is at each sample's time since the last input step [s] (module doc,
-        "After an input step"): 1 where the wait of ``settle_s`` is over (or the time is NaN), the
-        measured widening of the sample's bin within it, NaN where that was not measured (not judged)."""
-        since = np.asarray(since_step_s, dtype=float)
-        factor = np.ones(since.shape)
-        within = np.isfinite(since) & (since < settle_s)
-        if not within.any():
-            return factor
-        if len(self.after_step) != AFTER_STEP_BINS or not settle_s > 0:
-            factor[within] = np.nan
-            return factor
-        bins = np.clip((since[within] / settle_s * AFTER_STEP_BINS).astype(int), 0, AFTER_STEP_BINS - 1)
-        factor[within] = np.asarray(self.after_step, dtype=float)[bins]
-        return factor
-
-    def in_speed_range(self, omega_model_rad_s: ArrayLike, margin: float) -> NDArray[np.bool_]:
-        """Where the model speed lies in the range the healthy flight covered, widened by ``margin`` (a
-        share of the range's ends); everywhere where the range is not known."""
-        w = np.asarray(omega_model_rad_s, dtype=float)
-        if not (math.isfinite(self.omega_low_rad_s) and math.isfinite(self.omega_high_rad_s)):
-            return np.ones(w.shape, dtype=bool)
-        return (w >= (1.0 - margin) * self.omega_low_rad_s) & (w <= (1.0 + margin) * self.omega_high_rad_s)
-
-    def beyond_conditions(
-        self, margin: float, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
-    ) -> NDArray[np.float64]:
-        """How far each sample lies beyond the conditions σ was measured in: the larger of its input
-        activity over the flight's busiest and its pairing error (where given) over the flight's loosest,
-        those widened by ``margin``; at most 1 within both (0 where neither limit is known)."""
-        excess = np.zeros(np.shape(activity_v))
-        for values, high in (
-            (activity_v, self.activity_high_v),
-            (pairing_error_rad_s, self.pairing_error_high_rad_s),
-        ):
-            if values is None or not math.isfinite(high):
-                continue
-            x, limit = nan_to_zero(np.asarray(values, dtype=float)), (1.0 + margin) * high
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = x / limit if limit > 0 else np.where(x > 0, np.inf, 0.0)
-            excess = np.maximum(excess, ratio)
-        return excess
-
-    def known(
-        self,
-        omega_model_rad_s: ArrayLike,
-        margin: float,
-        activity_v: ArrayLike | None = None,
-        pairing_error_rad_s: ArrayLike | None = None,
-        reach: float = 1.0,
-    ) -> NDArray[np.bool_]:
-        """Where the model speed lies in the range the healthy flight covered, widened by ``margin`` (a
-        share of the range's ends), and the input activity and the pairing error (where given) are at most
-        ``reach`` times the flight's highest, widened alike; everywhere where a range is not known."""
-        inside = self.in_speed_range(omega_model_rad_s, margin)
-        if activity_v is not None or pairing_error_rad_s is not None:
-            shape = np.shape(omega_model_rad_s)
-            activity = np.zeros(shape) if activity_v is None else activity_v
-            inside &= self.beyond_conditions(margin, activity, pairing_error_rad_s) <= reach
-        return inside
-
-    def growth(
-        self,
-        omega_model_rad_s: ArrayLike,
-        margin: float,
-        activity_v: ArrayLike,
-        pairing_error_rad_s: ArrayLike | None,
-        exponent: float,
-    ) -> NDArray[np.float64]:
-        """The factor σ is multiplied by beyond the conditions it was measured in (module doc, "Beyond the
-        measured conditions"): ``excess ** exponent`` where :meth:`beyond_conditions` exceeds 1 and the
-        model speed lies in the identified range; 1 elsewhere (beyond the range only a propeller that lost
-        its load is judged, against σ as measured: rules/judged.py)."""
-        excess = np.maximum(self.beyond_conditions(margin, activity_v, pairing_error_rad_s), 1.0)
-        grown = np.where(np.isfinite(excess), excess, 1.0) ** exponent
-        return np.where(self.in_speed_range(omega_model_rad_s, margin), grown, 1.0)
-
 
 def _conditions(
     activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None
@@ -452,15 +533,17 @@ def _conditions(
 
 
 def _grown(
-    sigma: float,
-    per_activity: float,
-    per_pairing: float,
+    sigma: Any,
+    per_activity: Any,
+    per_pairing: Any,
     a: NDArray[np.float64],
     e: NDArray[np.float64] | None,
 ) -> NDArray[np.float64]:
     """σ(a, e) = √(σ₀² + (c·a)² + (p·e)²); the pairing's term only where ``e`` is given and p > 0."""
     out = np.hypot(sigma, per_activity * a)
-    return np.hypot(out, per_pairing * e) if e is not None and per_pairing > 0 else out
+    return (
+        np.where(np.asarray(per_pairing) > 0, np.hypot(out, per_pairing * e), out) if e is not None else out
+    )
 
 
 def _equation_of(values: Mapping[str, float], keys: tuple[str, ...]) -> EquationNoise | None:

@@ -264,16 +264,20 @@ def run_vehicle_stage(
 
         counts = [k for f in frames if f is not None for k in f.counts]
         every = [int(m) for motors, _ in staged for m in motors]
-        times, ages = stacked("time_s"), stacked("low_pass_s")
-        for given, into in STAGE_QUANTITIES:
-            if given not in stage.quantities or all(getattr(f, given) is None for f in frames):
+        given = {
+            name: stacked(name)
+            for name, _ in STAGE_QUANTITIES
+            if name in stage.quantities and any(getattr(f, name) is not None for f in frames)
+        }
+        found = stage.references(every, stacked("time_s"), given, counts, stacked("low_pass_s"))
+        for name, into in STAGE_QUANTITIES:
+            if name not in found:
                 continue
-            reference = stage.of(given).reference(every, times, stacked(given), counts, ages)
             r = 0
             for _, call in staged:
                 assert call.frame is not None
                 rows, n = call.frame.shape
-                references[id(call)][into] = reference[r : r + rows, :n]
+                references[id(call)][into] = found[name][r : r + rows, :n]
                 r += rows
     return [call.finish(references.get(id(call))) for _, call in calls]
 

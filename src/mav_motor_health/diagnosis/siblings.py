@@ -18,25 +18,27 @@ sibling's sample of the same instant counts where its number is lower) and are a
 low-pass time old (``frame.low_pass_s``: an older value is not of the same air). Where fewer than all
 but one of the vehicle's other motors have one, there is none (NaN) and the torque is not judged there:
 one motor without a residual (its ESC silent, a lost packet) is tolerated, two are not. Replay calls
-:meth:`SiblingTorque.reference` once with every motor's whole log; the live agent with each batch, the
+:meth:`VehicleStage.references` once with every motor's whole log; the live agent with each batch, the
 latest value of every motor carried between calls: both give the same references.
 
 The same stage takes a second look across motors where the profile grows its bands beyond the noise's
 conditions as the siblings run (``conditions_siblings``, :mod:`.rules.bands`): each motor's low-passed
 square of its deviations in its identified σ, speed and current, whose siblings' median says how wide
-healthy deviations run in the air all six share right now. :class:`VehicleStage` carries one
-:class:`SiblingTorque` (the latest values of every motor) per quantity, :data:`STAGE_QUANTITIES`.
+healthy deviations run in the air all six share right now. :class:`VehicleStage` carries every motor's
+latest value of each quantity it takes (:data:`STAGE_QUANTITIES`) and works out the references of all of
+them in one pass: the samples put in arrival order once, each motor's latest value found for every
+quantity and every sample together (on the live agent's hot path, a call of every motor's few samples).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["STAGE_QUANTITIES", "SiblingTorque", "VehicleStage", "median_of_finite"]
+__all__ = ["STAGE_QUANTITIES", "VehicleStage", "median_of_finite"]
 
 #: what the vehicle stage takes across motors: the frame's value each motor gives, and the frame's field
 #: its siblings' reference goes to (rules/base.py, :class:`~.rules.base.Frame`)
@@ -48,81 +50,83 @@ STAGE_QUANTITIES = (
 
 
 @dataclass
-class SiblingTorque:
-    """The vehicle stage's state: the vehicle's motors and each one's latest finite torque residual."""
+class VehicleStage:
+    """The vehicle stage's state: the vehicle's motors, and for each quantity of :data:`STAGE_QUANTITIES`
+    it takes, each motor's latest finite value and its time."""
 
     #: the vehicle's motor numbers (its frame); motors seen in a call and not listed are added
     motors: list[int] = field(default_factory=list)
-    latest_time_s: dict[int, float] = field(default_factory=dict)
-    latest_nm: dict[int, float] = field(default_factory=dict)
+    #: the frame fields of :data:`STAGE_QUANTITIES` the stage takes (what a rule after it reads)
+    quantities: tuple[str, ...] = ()
+    #: quantity → motor → (time [s], value) of its latest finite value
+    latest: dict[str, dict[int, tuple[float, float]]] = field(default_factory=dict)
 
-    def reference(
+    def references(
         self,
         motors: Sequence[int],
         time_s: NDArray[np.float64],
-        residual_nm: NDArray[np.float64],
+        values: Mapping[str, NDArray[np.float64]],
         counts: Sequence[int],
         max_age_s: NDArray[np.float64],
-    ) -> NDArray[np.float64]:
-        """The siblings' reference at each sample of rows of motors (module doc): ``time_s``,
-        ``residual_nm`` and ``max_age_s`` 2-D, one row per motor of ``motors``, each row's first
-        ``counts`` samples its own (the rest padding: NaN in the result). Advances the carried latest
-        values."""
+    ) -> dict[str, NDArray[np.float64]]:
+        """The siblings' reference of each quantity in ``values`` at each sample of rows of motors
+        (module doc): ``time_s``, ``max_age_s`` and each of ``values`` 2-D, one row per motor of
+        ``motors``, each row's first ``counts`` samples its own (the rest padding: NaN in the result).
+        Advances the carried latest values."""
         rows, width = np.shape(time_s)
-        out = np.full((rows, width), np.nan)
+        names = list(values)
+        out = {name: np.full((rows, width), np.nan) for name in names}
         for m in motors:
             if m not in self.motors:
                 self.motors.append(int(m))
-        if len(self.motors) < 2 or rows == 0:
+        if len(self.motors) < 2 or rows == 0 or not names:
             return out
         column = {m: j for j, m in enumerate(self.motors)}
         valid = np.arange(width)[None, :] < np.asarray(counts)[:, None]
         r_at, c_at = np.nonzero(valid)
-        carried = [m for m in self.motors if m in self.latest_time_s]
-        # the stream: each motor's carried latest value first, then the call's samples
-        t = np.concatenate([[self.latest_time_s[m] for m in carried], time_s[r_at, c_at]])
-        v = np.concatenate([[self.latest_nm[m] for m in carried], residual_nm[r_at, c_at]])
+        # the stream: every quantity's carried latest values first (each one a value of its own quantity
+        # only, NaN for the others: it never counts as another's latest), then the call's samples
+        carried = [
+            (q, m, *self.latest[name][m])
+            for q, name in enumerate(names)
+            for m in self.motors
+            if m in self.latest.get(name, {})
+        ]
+        held = len(carried)
+        t = np.concatenate([[c[2] for c in carried], time_s[r_at, c_at]])
+        v = np.full((len(names), t.size), np.nan)
+        for i, (q, _, _, value) in enumerate(carried):
+            v[q, i] = value
+        for q, name in enumerate(names):
+            v[q, held:] = values[name][r_at, c_at]
         who = np.concatenate(
-            [[column[m] for m in carried], np.asarray([column[int(m)] for m in motors])[r_at]]
+            [[column[c[1]] for c in carried], np.asarray([column[int(m)] for m in motors])[r_at]]
         ).astype(np.intp)
-        age_limit = np.concatenate([np.full(len(carried), -np.inf), max_age_s[r_at, c_at]])
+        age_limit = np.concatenate([np.full(held, -np.inf), max_age_s[r_at, c_at]])
         order = np.lexsort((np.asarray(self.motors)[who], t))  # arrival: time, then motor number
-        t, v, who, age_limit = t[order], v[order], who[order], age_limit[order]
+        t, v, who, age_limit = t[order], v[:, order], who[order], age_limit[order]
+        # each motor's (column's) latest finite value at or before each place in the stream, every
+        # quantity at once: (quantities, stream, columns)
         k = np.arange(t.size)
-        others = np.full((t.size, len(self.motors)), np.nan)
-        for j in range(len(self.motors)):
-            last = np.maximum.accumulate(np.where((who == j) & np.isfinite(v), k, -1))
-            have = last >= 0
-            at = np.maximum(last, 0)
-            fresh = have & (t - t[at] <= age_limit) & (who != j)
-            others[:, j] = np.where(fresh, v[at], np.nan)
-            if have[-1]:
-                self.latest_time_s[self.motors[j]] = float(t[at[-1]])
-                self.latest_nm[self.motors[j]] = float(v[at[-1]])
+        mine = who[:, None] == np.arange(len(self.motors))[None, :]
+        last = np.maximum.accumulate(
+            np.where(mine[None] & np.isfinite(v)[:, :, None], k[:, None], -1), axis=1
+        )
+        have = last >= 0
+        at = np.maximum(last, 0)
+        fresh = have & (t[:, None] - t[at] <= age_limit[:, None]) & ~mine[None]
+        latest = np.take_along_axis(v, at.reshape(len(names), -1), axis=1).reshape(at.shape)
+        others = np.where(fresh, latest, np.nan)
         need = max(1, len(self.motors) - 2)  # all but one of the other motors
-        reference = median_of_finite(others, need)
+        reference = median_of_finite(others.reshape(-1, len(self.motors)), need).reshape(len(names), -1)
         back = np.empty(t.size, dtype=np.intp)
         back[order] = k
-        out[r_at, c_at] = reference[back[len(carried) :]]
+        for q, name in enumerate(names):
+            out[name][r_at, c_at] = reference[q, back[held:]]
+            kept = self.latest.setdefault(name, {})
+            for j in np.flatnonzero(have[q, -1]).tolist():
+                kept[self.motors[j]] = (float(t[at[q, -1, j]]), float(v[q, at[q, -1, j]]))
         return out
-
-
-@dataclass
-class VehicleStage:
-    """The vehicle stage's state: for each quantity of :data:`STAGE_QUANTITIES` a motor gives, every
-    motor's latest value (a :class:`SiblingTorque` each, made at the quantity's first values)."""
-
-    #: the vehicle's motor numbers (its frame)
-    motors: list[int] = field(default_factory=list)
-    #: the frame fields of :data:`STAGE_QUANTITIES` the stage takes (what a rule after it reads)
-    quantities: tuple[str, ...] = ()
-    latest: dict[str, SiblingTorque] = field(default_factory=dict)
-
-    def of(self, quantity: str) -> SiblingTorque:
-        """The latest values of ``quantity`` (a frame field of :data:`STAGE_QUANTITIES`)."""
-        if quantity not in self.latest:
-            self.latest[quantity] = SiblingTorque(list(self.motors))
-        return self.latest[quantity]
 
 
 def median_of_finite(values: NDArray[np.float64], need: int) -> NDArray[np.float64]:

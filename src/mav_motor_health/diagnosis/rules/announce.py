@@ -15,7 +15,7 @@ from ..detection import (
     direction_evidence,
     equation_evidence,
     named_evidence,
-    sequential_alarms,
+    sequential_alarms_rows,
 )
 from ..persistence import PersistenceCarry, announce
 from ..states import MotorState
@@ -73,22 +73,17 @@ class Sequential(Rule):
         evidence = named_evidence(evidence, frame.state, profile.detection.reference_sigmas)
         # judged: the steady samples the tree named a motor state on (not a stall, a bad sensor, no data)
         judged = frame.steady & ~one_of(frame.state, _NOT_DIRECTIONS)
-        observation_s = 2.0 * frame.low_pass_s
-        t = frame.time_s
-        alarms = np.zeros(t.shape, dtype=np.int8)
-        level = np.full(t.shape, np.nan)
-        new = list(carries)
-        for r, count in enumerate(frame.counts):
-            alarms[r, :count], level[r, :count], new[r] = sequential_alarms(
-                profile.detection,
-                t[r, :count],
-                evidence[:, r, :count],
-                observation_s[r, :count],
-                judged[r, :count],
-                carries[r],
-                profile.persistence.max_gap_s,
-                frame.design_tau_s,
-            )
+        alarms, level, new = sequential_alarms_rows(
+            profile.detection,
+            frame.time_s,
+            evidence,
+            2.0 * frame.low_pass_s,
+            judged,
+            frame.counts,
+            carries,
+            profile.persistence.max_gap_s,
+            frame.design_tau_s,
+        )
         frame.alarms, frame.detection_level = alarms, level
         frame.announced_elsewhere = tuple(int(d) for d in DIRECTIONS)
         return new

@@ -199,9 +199,7 @@ class BalanceRule(CompareRule):
         if frame.noise is not None and len(frame.noise) == rows and profile.noise_bands > 0:
             # waiting after a step, judged where the vehicle's noise says how much wider it is there
             # (identification measured it: noise.py, "After an input step"); elsewhere the wait holds
-            after = np.stack(
-                [n.after_step_factor(since_step[r], self.settle_s) for r, n in enumerate(frame.noise)]
-            )
+            after = frame.noise_as_rows().after_step_factor(since_step, self.settle_s)
             with np.errstate(invalid="ignore"):
                 steady = steady | (np.isfinite(after) & (since_step < self.settle_s))
             frame.after_step_factor = after

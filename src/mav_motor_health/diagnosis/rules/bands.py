@@ -47,15 +47,10 @@ def _noise_of(frame: Frame, profile: ThresholdProfile) -> list[BandNoise]:
     return list(noise)
 
 
-def _sigmas(frame: Frame, noise: list[BandNoise]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _sigmas(frame: Frame) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Each row's identified σ(a, e) of the speed and the current at its samples."""
-    shape = frame.shape
-    a = np.zeros(shape) if frame.activity_v is None else frame.activity_v
-    e = frame.pairing_error_rad_s
-    speed, current = np.empty(shape), np.empty(shape)
-    for r, motor_noise in enumerate(noise):
-        speed[r], current[r] = motor_noise.sigmas(a[r], None if e is None else e[r])
-    return speed, current
+    a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
+    return frame.noise_as_rows().sigmas(a, frame.pairing_error_rad_s)
 
 
 @dataclass(frozen=True)
@@ -72,13 +67,12 @@ class LiveNoise(Rule):
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
         profile = self.profile
-        noise = _noise_of(frame, profile)
-        speed, current = _sigmas(frame, noise)
+        _noise_of(frame, profile)  # each motor has its noise (else a clear error)
+        speed, current = _sigmas(frame)
         frame.sigma_speed_rad_s, frame.sigma_current_a = speed, current
         rows, n = frame.shape
         counted = frame.steady & (np.arange(n)[None, :] < np.asarray(frame.counts)[:, None])
-        for r, motor_noise in enumerate(noise):
-            counted[r] &= motor_noise.in_speed_range(frame.omega_model_rad_s[r], profile.range_margin)
+        counted &= frame.noise_as_rows().in_speed_range(frame.omega_model_rad_s, profile.range_margin)
         with np.errstate(divide="ignore", invalid="ignore"):
             z2 = np.concatenate(
                 [
@@ -151,7 +145,7 @@ class Bands(Rule):
             if frame.sigma_speed_rad_s is not None and frame.sigma_current_a is not None:
                 speed, current = frame.sigma_speed_rad_s.copy(), frame.sigma_current_a.copy()
             else:
-                speed, current = _sigmas(frame, noise)
+                speed, current = _sigmas(frame)
             # the torque balance's band, where the profile judges in it: NaN for a motor without its noise
             # (no usable current: nothing to judge; said once where a motor with a current has none)
             torque = np.full(shape, np.nan) if profile.equation_bands > 0 else None
@@ -164,23 +158,24 @@ class Bands(Rule):
             exponent = profile.conditions_growth if reaching else 0.0
             # after an input step, wider by what identification measured there (rules/balance.py)
             after = frame.after_step_factor
-            for r, motor_noise in enumerate(noise):
-                e_r = None if e is None else e[r]
-                widen_speed: NDArray[np.float64] | float = 1.0  # beyond the conditions, after a step
-                widen_current: NDArray[np.float64] | float = 1.0
-                if exponent > 0:
-                    grown = motor_noise.growth(
-                        frame.omega_model_rad_s[r], profile.range_margin, a[r], e_r, exponent
-                    )
-                    widen_speed, widen_current = self.as_siblings_run(frame, r, grown)
-                if after is not None:
-                    step = np.where(np.isfinite(after[r]), after[r], 1.0)
-                    widen_speed, widen_current = widen_speed * step, widen_current * step
-                speed[r] *= widen_speed
-                current[r] *= widen_current
-                judged_torque = motor_noise.torque_judged
-                if torque is not None and judged_torque is not None:
-                    torque[r] = judged_torque.sigmas(a[r], e_r) * np.maximum(widen_speed, widen_current)
+            widen_speed: NDArray[np.float64] | float = 1.0  # beyond the conditions, after a step
+            widen_current: NDArray[np.float64] | float = 1.0
+            if exponent > 0:
+                grown = frame.noise_as_rows().growth(
+                    frame.omega_model_rad_s, profile.range_margin, a, e, exponent
+                )
+                widen_speed, widen_current = self.as_siblings_run(frame, grown)
+            if after is not None:
+                step = np.where(np.isfinite(after), after, 1.0)
+                widen_speed, widen_current = widen_speed * step, widen_current * step
+            speed *= widen_speed
+            current *= widen_current
+            if torque is not None:
+                widest = np.broadcast_to(np.maximum(widen_speed, widen_current), shape)
+                for r, motor_noise in enumerate(noise):
+                    judged_torque = motor_noise.torque_judged
+                    if judged_torque is not None:
+                        torque[r] = judged_torque.sigmas(a[r], None if e is None else e[r]) * widest[r]
             frame.speed_band_rad_s = profile.noise_bands * speed
             frame.current_band_a = profile.noise_bands * current
             frame.current_band_below_a = frame.current_band_a.copy()
@@ -193,9 +188,9 @@ class Bands(Rule):
         return carries
 
     def as_siblings_run(
-        self, frame: Frame, row: int, grown: NDArray[np.float64]
+        self, frame: Frame, grown: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The growth beyond the conditions of the speed's band and the current's at row ``row``: the
+        """The growth beyond the conditions of the speed's band and the current's (rows × samples): the
         excess's, ``grown``, for both (:class:`SiblingBands` bounds it by the siblings')."""
         return grown, grown
 
@@ -208,7 +203,7 @@ class SiblingBands(Bands):
     reads_siblings: ClassVar[bool] = True
 
     def as_siblings_run(
-        self, frame: Frame, row: int, grown: NDArray[np.float64]
+        self, frame: Frame, grown: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         out = []
         for siblings in (frame.siblings_z2_speed, frame.siblings_z2_current):
@@ -216,7 +211,7 @@ class SiblingBands(Bands):
                 out.append(grown)
                 continue
             with np.errstate(invalid="ignore"):
-                live = self.profile.conditions_siblings * np.sqrt(siblings[row])
+                live = self.profile.conditions_siblings * np.sqrt(siblings)
             out.append(np.where(np.isfinite(live), np.minimum(grown, np.maximum(live, 1.0)), grown))
         return out[0], out[1]
 

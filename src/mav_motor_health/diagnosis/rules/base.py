@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from ...errors import ConfigError
 from ...model.params import MotorParams
+from ..noise import NoiseRows
 from ..plausibility import CURRENT_UNTRUSTED
 
 if TYPE_CHECKING:
@@ -82,6 +83,9 @@ class Frame:
     #: table's ``input_excursion_v``, telemetry/assemble.py); None: not at all
     input_excursion_v: NDArray[np.float64] | None = None
     noise: Sequence[BandNoise] | None = None
+    #: ``noise`` as rows (:class:`~..noise.NoiseRows`), made by the first rule that needs them
+    #: (:meth:`noise_as_rows`)
+    noise_rows: NoiseRows | None = None
 
     # the comparison (a CompareRule)
     omega_model_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
@@ -165,6 +169,13 @@ class Frame:
     @property
     def shape(self) -> tuple[int, int]:
         return self.time_s.shape
+
+    def noise_as_rows(self) -> NoiseRows:
+        """``noise`` as rows (:class:`~..noise.NoiseRows`), made once per call."""
+        if self.noise_rows is None:
+            assert self.noise is not None
+            self.noise_rows = NoiseRows.of(self.noise)
+        return self.noise_rows
 
     def current_trusted(self) -> NDArray[np.bool_]:
         """Where the current may be used: a plausible sensor and a measurement."""

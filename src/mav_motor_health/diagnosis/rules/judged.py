@@ -64,17 +64,8 @@ class Judged(Rule):
             # beyond the speeds identification checked the model at, in busier air than its flight's or
             # paired more loosely (the noise there is an extrapolation): not judged (a stall still is)
             omega, activity, pairing = frame.omega_model_rad_s, frame.activity_v, frame.pairing_error_rad_s
-            known = np.stack(
-                [
-                    n.known(
-                        omega[r],
-                        profile.range_margin,
-                        None if activity is None else activity[r],
-                        None if pairing is None else pairing[r],
-                        profile.conditions_reach,
-                    )
-                    for r, n in enumerate(noise)
-                ]
+            known = frame.noise_as_rows().known(
+                omega, profile.range_margin, activity, pairing, profile.conditions_reach
             )
             held = steady  # the rule's own verdict, before the range
             steady = steady & (known | one_of(state, TRANSIENT_OK))
@@ -137,7 +128,7 @@ def _unloaded_beyond(frame: Frame) -> tuple[NDArray[np.bool_], NDArray[np.bool_]
         # model's current can read low by more than its band while the motor draws its load)
         with np.errstate(invalid="ignore"):
             judged &= ~(frame.current_mean_a >= floor)
-        quiet = np.array([n.sigmas(0.0)[1] for n in frame.noise], dtype=float).reshape(-1, 1)
+        quiet = frame.noise_as_rows().sigmas(0.0)[1]
         with np.errstate(invalid="ignore"):
             measured = (
                 lighter
