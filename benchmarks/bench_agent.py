@@ -305,9 +305,10 @@ def main(argv: list[str] | None = None) -> int:
     elif args.vehicle == "identified":
         VEHICLE, PROFILE = write_identified_vehicle(Path(keep.name) / "vehicle.toml", 60.0), None
 
+    picked = load_agent_config(None, connect="udpin:127.0.0.1:14550", params=VEHICLE, profile=PROFILE).profile
     print(
         f"python {sys.version.split()[0]} on {sys.platform}; flights of {args.seconds:.0f} s, {MOTORS} motors;"
-        f" vehicle: {args.vehicle}; profile: {load_agent_config(None, params=VEHICLE, profile=PROFILE).profile.name}"
+        f" vehicle: {args.vehicle}; profile: {picked.name}"
     )
     replay: dict[tuple[float, float], float] = {}
     parse: dict[float, float] = {}

@@ -14,14 +14,7 @@ over the whole flight, after a first run that is not timed): the ``flight`` prof
 that carries its noise: bands in that noise, the sequential test, the vehicle stage). The ratio of the two
 is the figure; both are per call and per motor sample.
 
-``--only PROFILE`` times one profile; with ``--repeat 0`` the flight is diagnosed once after the warm-up.
-Under valgrind the machine's load does not move the count of instructions:
-
-    OPENBLAS_NUM_THREADS=1 valgrind --tool=callgrind --callgrind-out-file=/dev/null \\
-        python benchmarks/bench_core_call.py --only flight_vehicle --repeat R     (R = 0, then 2)
-
-half the difference of the two counts is one run's (``OPENBLAS_NUM_THREADS=1``: the threshold design's
-linear solve, once per process, otherwise spins threads whose counts vary from run to run).
+``--only PROFILE`` times one profile.
 """
 
 from __future__ import annotations
@@ -115,11 +108,11 @@ def main(argv: list[str] | None = None) -> int:
     for name in profiles:
         run(name, vehicle, calls, motors)  # warm-up: the threshold's design, imports, caches
         times = []
-        for _ in range(max(args.repeat, 1) if args.repeat else 1):
+        for _ in range(args.repeat):
             start = time.process_time()
             run(name, vehicle, calls, motors)
             times.append(time.process_time() - start)
-        if args.repeat == 0:
+        if not times:
             continue
         per_call[name] = min(times) / len(calls)
         print(
