@@ -88,6 +88,7 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ('[steady]\nkind = "balance"\nresidual_tau_s = 0\n', "steady.residual_tau_s"),
         ("[persistence]\nmax_depth = 0.5\n", "persistence.max_depth"),
         ("[steady]\nslow_factor = 0.5\n", "steady.slow_factor"),
+        ('[steady]\nkind = "balance"\nstep_sigmas = -1\n', "steady.step_sigmas"),
         ("[profile]\nslow_band_fraction = 1.5\n", "profile.slow_band_fraction"),
         ("[profile]\nconditions_reach = 0.5\n", "profile.conditions_reach"),
         ("[profile]\nconditions_growth = -1\n", "profile.conditions_growth"),

@@ -189,20 +189,30 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
         assert together.carries[1].rules["tree"].count >= 50
 
 
-@pytest.mark.parametrize("limited", [False, True], ids=["within the conditions", "grown as siblings run"])
-def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor, limited) -> None:
+@pytest.mark.parametrize(
+    "limited, step_sigmas",
+    [(False, 0.0), (True, 0.0), (True, 1.0)],
+    ids=["within the conditions", "grown as siblings run", "a step in the motor's own noise"],
+)
+def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor, limited, step_sigmas) -> None:
     """With the torque judged against the siblings (diagnosis/siblings.py), a motor's results depend on
     the others': batches cut in the order samples arrive (time, then motor) through
     :meth:`StreamingDiagnoser.update_motors` give what :func:`diagnose` gives the whole table. (Every
     sample given: a batch ending on a lost sample differs by a sample for its own reason, see above.)
     ``limited``: the noise measured on a calmer flight, so that most samples lie beyond its conditions,
     where the shipped profile grows the bands as the siblings' deviations run (rules/bands.py): the
-    bands depend on the other motors' too, and are the same both ways."""
+    bands depend on the other motors' too, and are the same both ways. ``step_sigmas``: a step also where
+    the model speed jumps by that many σ of the motor's noise (rules/balance.py), the model speed of a
+    batch's first sample compared with the one carried from the batch before."""
     motors = _window(lost=False)
     from mav_motor_health.diagnosis.pipeline import diagnose
     from mav_motor_health.telemetry.table import TelemetryTable
 
     profile = load_profile("flight_vehicle")
+    if step_sigmas:
+        profile = dataclasses.replace(
+            profile, steady=dataclasses.replace(profile.steady, step_sigmas=step_sigmas)
+        )
     noise = {
         m: BandNoise(
             6.0 + m,
@@ -234,10 +244,14 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor, 
         assert (band >= sigma * (1 - 1e-12)).all()
         assert (band < 0.9 * sigma * np.maximum(excess, 1.0) ** profile.conditions_growth).mean() > 0.05
     assert np.isfinite(whole["torque_siblings_nm"]).mean() > 0.5  # the stage ran
+    if step_sigmas:  # the model's jumps hold samples back that the volts' steps do not
+        plain = diagnose(table, paper_motor, load_profile("flight_vehicle"), noise)
+        held = plain["steady"] & ~whole["steady"]
+        assert held.mean() > 0.01 and not (whole["steady"] & ~plain["steady"]).any()
     arrival = np.lexsort((whole["motor"], whole["time_s"]))
     stream = StreamingDiagnoser(paper_motor, profile, list(motors), noise)
     rng = np.random.default_rng(19)
-    compared = ("state", "announced", "torque_siblings_nm", "speed_band_rad_s", "current_band_a")
+    compared = ("state", "announced", "steady", "torque_siblings_nm", "speed_band_rad_s", "current_band_a")
     got = {name: np.full(len(whole), np.nan) for name in compared}
     k = 0
     while k < arrival.size:
@@ -266,9 +280,9 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor, 
             for name in got:
                 got[name][rows] = results[m][name]
     measured = np.isfinite(whole["omega_rad_s"]) | np.isfinite(whole["current_a"])
-    for name in ("state", "announced"):
+    for name in ("state", "announced", "steady"):
         np.testing.assert_array_equal(got[name][measured], whole[name][measured], err_msg=name)
-    for name in compared[2:]:
+    for name in compared[3:]:
         np.testing.assert_allclose(got[name][measured], whole[name][measured], rtol=1e-9, equal_nan=True)
 
 

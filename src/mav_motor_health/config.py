@@ -255,6 +255,7 @@ _STEADY_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "bus_ref_v": (0.0, None, "V"),
     "excursion_weight": (0.0, 1.0, ""),
     "excursion_pairing_weight": (0.0, 1.0, ""),
+    "step_sigmas": (0.0, 1000.0, ""),
 }
 
 

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from ..._arrays import nan_to_zero
 from ...errors import ConfigError
 from ...model.balance import BalanceCarry, balance_deviations_rows
-from ...model.dynamics import ResponseCarry, first_order_responses, last_of
+from ...model.dynamics import ResponseCarry, first_order_responses, last_of, previous
 from ..stall import StallCarry, stall_mean_rows, stop_speeds
 from ..steady import SteadyCarry, settling_rows
 from .base import CompareRule, Frame, SlowAverages
@@ -55,6 +55,8 @@ class BalanceRuleCarry:
     slow_current: ResponseCarry = field(default_factory=ResponseCarry)
     #: the lowest positive input the motor has been given in the stream [V] (inf: none yet)
     lowest_input_v: float = math.inf
+    #: the model speed at the motor's last sample [rad/s] (``step_sigmas``; NaN: none yet)
+    last_model_rad_s: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,11 @@ class BalanceRule(CompareRule):
     #: the same excursions as the pairing guard's command movement between two samples, ``|ΔV| + 2·w·e``
     #: (diagnosis/pairing.py); 0: none (the default, measured in the same place)
     excursion_pairing_weight: float = 0.0
+    #: a step also where the model speed moves by more than this many times the motor's identified quiet
+    #: σ of the speed (``[noise.N] speed_rad_s``) from one sample to the next, whatever the volts did (the
+    #: wait restarts there, as for a motor at idle); 0: off (the default: measured on held-out worlds only,
+    #: docs/flight.md "A step in the motor's own noise")
+    step_sigmas: float = 0.0
 
     def validate(self) -> None:
         check_settling(self.step_v, self.settle_s)
@@ -97,6 +104,10 @@ class BalanceRule(CompareRule):
         if not self.activity_tau_s > 0:
             raise ConfigError(
                 f"{self.activity_tau_s!r}", key="steady.activity_tau_s", expected="a time constant > 0 s"
+            )
+        if not self.step_sigmas >= 0:
+            raise ConfigError(
+                f"{self.step_sigmas!r}", key="steady.step_sigmas", expected="a number of sigmas >= 0 (0: off)"
             )
         for name in ("excursion_weight", "excursion_pairing_weight"):
             if not 0 <= getattr(self, name) <= 1:
@@ -178,6 +189,19 @@ class BalanceRule(CompareRule):
             with np.errstate(divide="ignore", invalid="ignore"):
                 bus_v = np.where(cmd > 0.05, v / cmd, np.nan)  # the input is command × bus voltage
             at_idle = bal.voltage_v < profile.min_command * bus_v
+        restart = at_idle  # the samples whose wait starts again whatever the volts did
+        last_model = [c.last_model_rad_s for c in carries]
+        if self.step_sigmas > 0 and frame.noise is not None and len(frame.noise) == rows:
+            # the model speed jumped by more than a few σ of the motor's noise since the sample before: an
+            # input the log's ESC reports have not caught up with, whatever the volts' step says
+            before = previous(omega_pred, last_model)
+            quiet = frame.noise_as_rows().speed_rad_s
+            with np.errstate(invalid="ignore"):
+                jump = np.abs(omega_pred - before) > self.step_sigmas * quiet
+            restart = jump if restart is None else restart | jump
+            last_model = [
+                old if new is None else new for old, new in zip(last_model, last_of(omega_pred, counts))
+            ]
         slow_on = self.slow_factor > 0
         warm, settled, since_step = settling_rows(
             t,
@@ -189,7 +213,7 @@ class BalanceRule(CompareRule):
             counts,
             # the activity's low-pass has to fill up first, and the deviations' (longer in gusts)
             start_settle_s=np.maximum(3.0 * self.activity_tau_s, 3.0 * bal.tau_s),
-            restart=at_idle,
+            restart=restart,
             also_settle_s=self.slow_factor * self.settle_s if slow_on else None,
         )
         if slow_on:
@@ -242,6 +266,7 @@ class BalanceRule(CompareRule):
                 slow_carries[r],
                 slow_carries[rows + r],
                 lowest[r],
+                last_model[r],
             )
             for r in range(rows)
         ]
