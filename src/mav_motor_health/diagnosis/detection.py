@@ -88,6 +88,7 @@ from scipy.special import ndtr
 
 from .._arrays import nan_to_zero
 from ..errors import ConfigError
+from ..model.dynamics import marked_before
 from .states import MotorState
 
 __all__ = [
@@ -418,9 +419,7 @@ def sequential_alarms_rows(
     credit, intervals = report_credits(t, counts, carries, max_gap_s)
     # each judged sample's time since the judged one before it (the carried one's before the first)
     position = np.arange(n)[None, :]
-    latest = np.maximum.accumulate(np.where(judged, position, -1), axis=1)  # at or before each
-    before = np.concatenate([np.full((rows, 1), -1), latest[:, :-1]], axis=1)
-    t_before = np.where(before >= 0, np.take_along_axis(t, np.maximum(before, 0), axis=1), last_s[:, None])
+    latest, _, t_before = marked_before(t, judged, last_s)
     fresh = judged & ~(t - t_before <= max_gap_s)  # a gap (or the first sample ever): afresh
     dt = np.where(fresh, 0.0, credit)
     with np.errstate(invalid="ignore", divide="ignore"):

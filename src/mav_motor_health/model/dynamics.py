@@ -35,6 +35,7 @@ __all__ = [
     "first_order_response",
     "first_order_responses",
     "last_of",
+    "marked_before",
     "previous",
     "time_constant_s",
 ]
@@ -314,6 +315,22 @@ def previous(values: ArrayLike, carried: ArrayLike) -> FloatArray:
     out[:, 0] = carried
     out[:, 1:] = v[:, :-1]
     return out
+
+
+def marked_before(
+    time_s: FloatArray, marked: NDArray[np.bool_], carried_s: ArrayLike
+) -> tuple[NDArray[np.intp], NDArray[np.intp], FloatArray]:
+    """For rows of samples (2-D) and the samples ``marked`` in them: each sample's latest marked sample
+    at or before it and the latest strictly before it (-1: none in the rows yet), and that one's time
+    (the row's ``carried_s`` where there is none: the last marked time of the calls before)."""
+    latest = np.maximum.accumulate(np.where(marked, np.arange(marked.shape[1])[None, :], -1), axis=1)
+    before = previous(latest, -1).astype(np.intp)
+    time_before = np.where(
+        before >= 0,
+        np.take_along_axis(time_s, np.maximum(before, 0), axis=1),
+        np.asarray(carried_s, dtype=float)[:, None],
+    )
+    return latest, before, time_before
 
 
 def last_of(values: NDArray, lengths: Sequence[int] | NDArray[np.integer]) -> list:

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from ...model.dynamics import affine_recurrence, previous
+from ...model.dynamics import affine_recurrence, marked_before
 from .base import Frame, Rule
 
 if TYPE_CHECKING:
@@ -108,13 +108,8 @@ def held_average(
     starting it at its value; elsewhere y holds (NaN before the first). Only counted samples move it or
     its clock, so a split of the rows into calls gives the same values (to rounding). Returns the
     averages and each row's last counted time and average (the carried ones where none was counted)."""
-    rows, n = values.shape
-    index = np.where(counted, np.arange(n)[None, :], -1)
-    last = np.maximum.accumulate(index, axis=1)  # the latest counted sample at or before each
-    before = previous(last, -1).astype(np.intp)  # ... and strictly before each
-    t_before = np.where(
-        before >= 0, np.take_along_axis(time_s, np.maximum(before, 0), axis=1), carry_t[:, None]
-    )
+    rows = values.shape[0]
+    last, before, t_before = marked_before(time_s, counted, carry_t)
     with np.errstate(invalid="ignore"):
         a = np.exp(-np.maximum(time_s - t_before, 0.0) / tau_s)
     started = np.isfinite(carry_y)[:, None] | (before >= 0)  # a value before this sample
