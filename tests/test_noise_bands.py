@@ -692,3 +692,20 @@ def test_noise_rows_give_each_motor_what_its_own_noise_gives() -> None:
     assert not np.array_equal(got["after step"][2], got["after step"][4])
     assert got["range"][0].mean() != got["range"][3].mean()
     assert np.isinf(got["sigmas"][1][1]).all() and np.isfinite(got["sigmas"][1][0]).all()
+
+
+def test_noise_rows_are_made_once_for_the_same_noise_and_never_for_other_noise() -> None:
+    """The agent asks for its motors' rows in every call: the same motors' noise gives the rows made
+    before (read-only, so no rule can change them for the next call); other noise, or the same in
+    another order, its own rows."""
+    noise = [BandNoise(1.0 + m, 0.5, 0.1 * m, 0.05) for m in range(6)]
+    rows = NoiseRows.of(noise)
+    assert NoiseRows.of(list(noise)) is rows
+    with pytest.raises(ValueError, match="read-only"):
+        rows.speed_rad_s[0, 0] = 0.0
+    reordered = NoiseRows.of(noise[::-1])
+    np.testing.assert_array_equal(reordered.speed_rad_s[:, 0], [6.0, 5.0, 4.0, 3.0, 2.0, 1.0])
+    equal_but_new = [BandNoise(1.0 + m, 0.5, 0.1 * m, 0.05) for m in range(6)]
+    other = [BandNoise(9.0, 0.5), *noise[1:]]
+    assert NoiseRows.of(other).speed_rad_s[0, 0] == 9.0
+    np.testing.assert_array_equal(NoiseRows.of(equal_but_new).speed_rad_s, rows.speed_rad_s)

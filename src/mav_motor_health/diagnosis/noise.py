@@ -361,13 +361,30 @@ class NoiseRows(_ConditionsMath):
 
     @classmethod
     def of(cls, noise: Sequence[BandNoise]) -> NoiseRows:
-        """The rows of ``noise``, in its order."""
+        """The rows of ``noise``, in its order: made once for the same motors' noise (the agent asks for
+        them in every call; :class:`BandNoise` is frozen, and the rows' arrays are read-only)."""
+        key = tuple(map(id, noise))
+        held = _ROWS_MADE.get(key)
+        if held is not None and all(a is b for a, b in zip(held[0], noise)):
+            return held[1]
         columns = {
             name: np.array([getattr(n, name) for n in noise], dtype=float).reshape(-1, 1)
             for name in _ROW_NUMBERS
         }
         table = np.concatenate([n.after_step_table for n in noise]).reshape(-1, AFTER_STEP_BINS)
-        return cls(**columns, after_step_table=table)
+        for column in (*columns.values(), table):
+            column.flags.writeable = False
+        rows = cls(**columns, after_step_table=table)
+        if len(_ROWS_MADE) >= _ROWS_HELD:
+            _ROWS_MADE.clear()
+        # the noise itself is held too: while it is, no other object can take its id
+        _ROWS_MADE[key] = (tuple(noise), rows)
+        return rows
+
+
+#: the rows made lately, by the ids of the noise they were made of (:meth:`NoiseRows.of`)
+_ROWS_MADE: dict[tuple[int, ...], tuple[tuple[BandNoise, ...], NoiseRows]] = {}
+_ROWS_HELD = 64
 
 
 #: the numbers of :class:`_ConditionsMath`, in :class:`NoiseRows`' order
