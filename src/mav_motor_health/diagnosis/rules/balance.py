@@ -83,8 +83,9 @@ class BalanceRule(CompareRule):
     excursion_pairing_weight: float = 0.0
     #: a step also where the model speed moves by more than this many times the motor's identified quiet
     #: σ of the speed (``[noise.N] speed_rad_s``) from one sample to the next, whatever the volts did (the
-    #: wait restarts there, as for a motor at idle); 0: off (the default: measured on held-out worlds only,
-    #: docs/flight.md "A step in the motor's own noise")
+    #: wait restarts there, as for a motor at idle); 0: off (the default, as a profile without a vehicle's
+    #: noise has no σ to count in); ``flight_vehicle`` ships 5 (docs/flight.md "A step in the motor's own
+    #: noise", measured over twenty healthy hours)
     step_sigmas: float = 0.0
 
     def validate(self) -> None:
