@@ -151,9 +151,12 @@ def with_band_noise(
     """The vehicle with each motor's band noise (:mod:`.diagnosis.noise`) added to its ``noise``: the
     flight rule of ``profile`` run over its healthy flights with the model identification found."""
     profile_rules = load_profile(profile)
+    # an ESC that reports its input current: the torque balance carries the duty's ripple (noise.py), and
+    # the rule reads the torque through the duty (model/balance.py)
+    input_current = vehicle.current is not None and vehicle.current.side == "input"
     # while the noise is measured, no band: every sample the rule judges counts (a band would set aside
     # those the log's pairing makes doubtful, and those are part of the noise the bands must cover)
-    unbounded = {m: BandNoise.unbounded() for m in range(1, MAX_MOTOR_NUMBER + 1)}
+    unbounded = {m: BandNoise.unbounded(input_current) for m in range(1, MAX_MOTOR_NUMBER + 1)}
     diagnosed = []
     for table in tables:
         calibrated = vehicle.calibrate(table)
@@ -161,8 +164,6 @@ def with_band_noise(
         diagnosed.append(diagnose(calibrated, models, profile_rules, unbounded))
     # the rule's wait after a step: how much wider the deviations are while it waits (noise.py)
     settle_s = float(getattr(profile_rules.steady, "settle_s", 0.0))
-    # an ESC that reports its input current: the torque balance carries the duty's ripple (noise.py)
-    input_current = vehicle.current is not None and vehicle.current.side == "input"
     measured = measure_band_noise(diagnosed, profile_rules.min_command, settle_s, input_current)
     noise = {m: dict(v) for m, v in vehicle.noise.items()}
     for motor, band in measured.items():

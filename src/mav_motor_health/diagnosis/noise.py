@@ -447,11 +447,13 @@ class BandNoise(_ConditionsMath):
     torque_vs_siblings: EquationNoise | None = None
 
     @classmethod
-    def unbounded(cls) -> BandNoise:
+    def unbounded(cls, through_duty: bool = False) -> BandNoise:
         """A noise of infinite σ everywhere: no band at all (identification runs the rule with it while it
-        measures the noise, so that every sample the rule judges counts)."""
+        measures the noise, so that every sample the rule judges counts). ``through_duty``: the ESC reads
+        its input current (the rule reads the torque through the duty as it will when it judges)."""
         inf = EquationNoise(math.inf)
-        return cls(math.inf, math.inf, torque=inf, voltage=inf, torque_vs_siblings=inf)
+        torque = EquationNoise(math.inf, through_duty=through_duty)
+        return cls(math.inf, math.inf, torque=torque, voltage=inf, torque_vs_siblings=inf)
 
     @property
     def has_torque_noise(self) -> bool:

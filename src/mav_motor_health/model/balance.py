@@ -34,7 +34,10 @@ friction (F1.1) or a lighter propeller (F3.1) is torque (``r_T`` above or below 
 an open transistor (F4.1) is voltage (``r_V`` above 0) with ``r_T`` near 0. Their noise differs: ``r_V``
 carries the error of the command each report was paired with (a command that jitters between reports
 moves ``V``); ``r_T`` needs no command where the ESC reports its motor current (where it reports its input
-current, the motor current is that over the duty, and the command's jitter enters there too). Δi combines
+current ``s``, the torque reads the motor current as the electrical balance below does, ``mean(s)/mean(d)``,
+and the command's jitter enters there too; the mean of ``s/d`` would take a report averaged over a command
+dip, divided by the dip's small duty, for hundreds of amperes: docs/flight.md, "The torque through the
+duty as a ratio of means"). Δi combines
 them, ``(k_e·r_T − G·r_V)/D``, so its band holds both noises while a fault moves one
 (docs/flight.md, "The two equations apart, measured").
 
@@ -71,6 +74,7 @@ input.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -290,6 +294,7 @@ def balance_deviations(
     input_current_a: ArrayLike | None = None,
     duty: ArrayLike | None = None,
     input_excursion_v: ArrayLike | None = None,
+    torque_through_duty: bool = False,
 ) -> tuple[BalanceResult, BalanceCarry]:
     """Low-passed balances and the steady-state deviations they imply (see the module doc).
 
@@ -301,6 +306,8 @@ def balance_deviations(
     and ``duty`` (the command, 0..1), the electrical balance uses those, weighted by the duty (see the
     module doc), and ``current_a`` only says where a current is known. ``input_excursion_v``: how far the
     input went beyond the two samples' inputs in between (module doc, "input activity"; None: not at all).
+    ``torque_through_duty``: ``current_a`` is ``input_current_a`` over the duty, and the torque reads the
+    motor current as ``mean(input_current_a)/mean(duty)`` (module doc, "The two equations apart").
 
     NaN speed or current (a lost sample, a missing sensor) hold the low-passes; Δi is NaN where the
     current is NaN, Δω needs only voltage and speed.
@@ -327,6 +334,7 @@ def balance_deviations(
         input_current_a=row(input_current_a),
         duty=row(duty),
         input_excursion_v=row(input_excursion_v),
+        torque_through_duty=[torque_through_duty],
     )
     return BalanceResult(*(np.asarray(getattr(result, f))[0] for f in _RESULT_FIELDS)), new
 
@@ -376,12 +384,15 @@ def balance_deviations_rows(
     input_current_a: FloatArray | None = None,
     duty: FloatArray | None = None,
     input_excursion_v: FloatArray | None = None,
+    torque_through_duty: Sequence[bool] | None = None,
 ) -> tuple[BalanceResult, list[BalanceCarry]]:
     """:func:`balance_deviations` of several motors of one model at once: rows of samples (2-D), one
     carry per row; ``lengths`` each row's number of samples (None: all; the rest is padding after them).
     The nine low-passes of each row run in one call. ``input_excursion_v``: how far each sample's input
     went beyond the two held inputs since the sample before (module doc, "input activity"; None: not
-    at all)."""
+    at all). ``torque_through_duty``: per row, whether ``current_a`` is an input current over the duty
+    (``input_current_a`` and ``duty`` given): the torque then reads the motor current as
+    ``mean(s)/mean(d)`` (module doc, "The two equations apart"); None: no row."""
     t, v, w, i = time_s, voltage_v, omega_rad_s, current_a
     rows, n = t.shape
     counts = [n] * rows if lengths is None else lengths
@@ -432,7 +443,16 @@ def balance_deviations_rows(
     weight = np.where(np.isfinite(sensed), weight, np.nan)
     zero = np.where(np.isfinite(sensed), (sensed == 0.0).astype(float), np.nan)
     electrical = weight * (v - p.k_e * w) - p.R_ohm * sensed
-    mechanical = p.k_t * (i - load_a)  # the torque the model cannot account for, less J·dω/dt
+    # the torque the model cannot account for, less J·dω/dt; where the current is an input current over
+    # the duty it is read as the electrical balance reads it, mean(s)/mean(d), not as the mean of s/d
+    # (module doc, "The two equations apart"): there only the load's torque is averaged here
+    through_duty = None
+    given = input_current_a is not None and duty is not None
+    if torque_through_duty is not None and given and any(torque_through_duty):
+        through_duty = np.asarray(torque_through_duty, dtype=bool).reshape(-1, 1)
+    mechanical = p.k_t * (i - load_a)
+    if through_duty is not None:
+        mechanical = np.where(through_duty, -p.k_t * load_a, mechanical)
     # every low-pass of every row at once (the stall current: every current reading)
     k = len(_AVERAGED)
     means, averaged = first_order_responses(
@@ -452,6 +472,9 @@ def balance_deviations_rows(
     e_mean = e_mean - p.R_ohm * (censored_mean(s_mean, zero_share) - s_mean)
     with np.errstate(divide="ignore", invalid="ignore"):
         rv_mean = e_mean / np.where(d_mean >= MIN_MEAN_DUTY, d_mean, np.nan)
+        if through_duty is not None:
+            divided = p.k_t * s_mean / np.where(d_mean >= MIN_MEAN_DUTY, d_mean, np.nan)
+            m_mean = np.where(through_duty, m_mean + divided, m_mean)
     model = steady_state(p, v_mean)
     _, d = linearised_slopes(p, model.omega_rad_s)
     delta_w = -sb_mean / d

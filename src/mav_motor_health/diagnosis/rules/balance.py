@@ -151,6 +151,11 @@ class BalanceRule(CompareRule):
             input_current_a=frame.sensor_current_a if command is not None else None,
             duty=command if frame.sensor_current_a is not None else None,
             input_excursion_v=frame.excursions(self.excursion_weight),
+            # where the vehicle's noise says the ESC reads its input current (the motor current is that
+            # over the duty): the torque reads it as mean(s)/mean(d) (model/balance.py)
+            torque_through_duty=None
+            if frame.noise is None
+            else [n.torque is not None and n.torque.through_duty for n in frame.noise],
         )
         omega_pred, current_pred = bal.omega_model_rad_s, bal.current_model_a
         # A stalled motor: the speed itself (the lower of the sample and its low-pass, so that a
