@@ -365,7 +365,7 @@ class NoiseRows(_ConditionsMath):
         them in every call; :class:`BandNoise` is frozen, and the rows' arrays are read-only)."""
         key = tuple(map(id, noise))
         held = _ROWS_MADE.get(key)
-        if held is not None and all(a is b for a, b in zip(held[0], noise)):
+        if held is not None:
             return held[1]
         columns = {
             name: np.array([getattr(n, name) for n in noise], dtype=float).reshape(-1, 1)
@@ -377,7 +377,8 @@ class NoiseRows(_ConditionsMath):
         rows = cls(**columns, after_step_table=table)
         if len(_ROWS_MADE) >= _ROWS_HELD:
             _ROWS_MADE.clear()
-        # the noise itself is held too: while it is, no other object can take its id
+        # the noise itself is held too: while it is, no other object can take its id, so the same ids are
+        # the same noise
         _ROWS_MADE[key] = (tuple(noise), rows)
         return rows
 

@@ -83,9 +83,6 @@ class Frame:
     #: table's ``input_excursion_v``, telemetry/assemble.py); None: not at all
     input_excursion_v: NDArray[np.float64] | None = None
     noise: Sequence[BandNoise] | None = None
-    #: ``noise`` as rows (:class:`~..noise.NoiseRows`), made by the first rule that needs them
-    #: (:meth:`noise_as_rows`)
-    noise_rows: NoiseRows | None = None
 
     # the comparison (a CompareRule)
     omega_model_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
@@ -171,11 +168,9 @@ class Frame:
         return self.time_s.shape
 
     def noise_as_rows(self) -> NoiseRows:
-        """``noise`` as rows (:class:`~..noise.NoiseRows`), made once per call."""
-        if self.noise_rows is None:
-            assert self.noise is not None
-            self.noise_rows = NoiseRows.of(self.noise)
-        return self.noise_rows
+        """``noise`` as rows (:class:`~..noise.NoiseRows`; made once for the same noise)."""
+        assert self.noise is not None
+        return NoiseRows.of(self.noise)
 
     def current_trusted(self) -> NDArray[np.bool_]:
         """Where the current may be used: a plausible sensor and a measurement."""
