@@ -127,6 +127,33 @@ def test_a_report_averaged_over_a_command_dip_is_not_divided_by_the_dip(motor) -
     assert np.max(np.abs(weighted)) < 0.15 * load  # the dip's share of mean(d): a tenth
 
 
+def test_the_load_through_the_duty_holds_where_the_current_is_missing(motor) -> None:
+    """Read through the duty, the torque averages the load over the samples whose current it averages: a
+    speed that moves while the current reading is missing (a dropped report) moves it no more than it
+    moves the motor current's k_t·(i − load), which holds there. At a constant duty the two readings are
+    the same numbers (mean(s)/d = mean(s/d))."""
+    rng = np.random.default_rng(7)
+    t = np.arange(600) * 0.02
+    bus, duty = 11.1, np.full(600, 0.6)
+    ss = steady_state(motor, 0.6 * bus)
+    w = float(ss.omega_rad_s) + rng.normal(0.0, 5.0, t.size)
+    i = float(ss.current_a) + rng.normal(0.0, 0.2, t.size)
+    missing = (t > 4.0) & (t < 5.0)
+    w[missing] += 150.0  # the speed moves while no current is read
+    i[missing] = np.nan
+    sensed = duty * i
+
+    def torque(**esc) -> np.ndarray:
+        res, _ = balance_deviations(motor, t, duty * bus, w, i, 0.15, 0.5, **esc)
+        return res.torque_residual_nm
+
+    through = torque(input_current_a=sensed, duty=duty, torque_through_duty=True)
+    motor_current = torque()
+    known = np.isfinite(i)
+    assert np.array_equal(np.isfinite(through), known)
+    np.testing.assert_allclose(through[known], motor_current[known], rtol=0, atol=1e-9)
+
+
 def test_activity_sees_zigzags_not_steps_or_ramps() -> None:
     t = np.arange(400) * 0.02
     zigzag = 7.0 + 0.5 * (-1.0) ** np.arange(400)  # up, down, up...: 1 V between samples

@@ -452,7 +452,9 @@ def balance_deviations_rows(
         through_duty = np.asarray(torque_through_duty, dtype=bool).reshape(-1, 1)
     mechanical = p.k_t * (i - load_a)
     if through_duty is not None:
-        mechanical = np.where(through_duty, -p.k_t * load_a, mechanical)
+        # the load's torque held where the current reading is (as s and d are, and the motor current's
+        # k_t·(i − load) is): averaged over the samples the current is averaged over, not others
+        mechanical = np.where(through_duty, np.where(np.isfinite(i), -p.k_t * load_a, np.nan), mechanical)
     # every low-pass of every row at once (the stall current: every current reading)
     k = len(_AVERAGED)
     means, averaged = first_order_responses(
