@@ -260,3 +260,21 @@ def test_a_current_every_motor_gains_alike_is_judged_against_the_siblings_not_na
     assert judged.mean() > 0.8  # not by setting the samples aside
     assert np.mean(siblings["state"][sel] == MotorState.F1_1) < 0.01
     assert MotorState.F1_1 not in set(siblings["announced"].tolist())
+
+
+def test_siblings_beyond_their_identified_speeds_count_only_at_the_motors_own_speed(
+    motor, flights, noise
+) -> None:
+    """The pipeline gives the vehicle stage each sample's model speed and whether it lies in the motor's
+    identified range (diagnosis/siblings.py): with every motor's range set below the flight, a reference
+    stays only where three siblings turn within ``range_margin`` of the motor's speed, so some samples of
+    the moderate flight lose theirs; with the ranges measured, none does."""
+    profile = load_profile("flight_vehicle")
+    table = flights["healthy"].table
+    slow = {"omega_low_rad_s": 50.0, "omega_high_rad_s": 50.0}
+    beyond = {m: dataclasses.replace(v, **slow) for m, v in noise.items()}
+    measured, carried = diagnose(table, motor, profile, noise), diagnose(table, motor, profile, beyond)
+    had = np.isfinite(measured["torque_siblings_nm"])
+    kept = np.isfinite(carried["torque_siblings_nm"])
+    assert had.mean() > 0.9 and not (kept & ~had).any()
+    assert 0.005 < (had & ~kept).sum() / had.sum() < 0.5  # some lost: siblings more than 10 % apart

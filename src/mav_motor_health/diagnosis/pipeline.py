@@ -234,7 +234,33 @@ def vehicle_stage(
             quantities.append("torque_residual_nm")
         if profile.grows_as_siblings:
             quantities += ["live_z2_speed", "live_z2_current"]
-    return VehicleStage([int(m) for m in motors], tuple(quantities)) if quantities else None
+    if not quantities:
+        return None
+    # the torque against siblings at its own speed, within the margin the model is trusted beyond its
+    # identified speeds (siblings.py, "At the same speed")
+    alike = {"torque_residual_nm": profile.range_margin} if profile.range_margin > 0 else {}
+    return VehicleStage([int(m) for m in motors], tuple(quantities), alike=alike)
+
+
+def _speeds_and_ranges(
+    frames: Sequence[Frame | None], width: int
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Every row's model speed and whether it lies in its motor's identified speed range (widened by the
+    profile's ``range_margin``; everywhere where a frame has no noise), stacked as the vehicle stage
+    takes them (rows × ``width``)."""
+    speeds, inside = [], []
+    for f in frames:
+        assert f is not None
+        pad = width - f.shape[1]
+        w = f.omega_model_rad_s
+        ok = (
+            np.ones(f.shape, dtype=bool)
+            if f.noise is None
+            else f.noise_as_rows().in_speed_range(w, f.profile.range_margin)
+        )
+        speeds.append(np.pad(w, ((0, 0), (0, pad)), constant_values=np.nan))
+        inside.append(np.pad(ok, ((0, 0), (0, pad)), constant_values=False))
+    return np.concatenate(speeds), np.concatenate(inside)
 
 
 def run_vehicle_stage(
@@ -269,7 +295,14 @@ def run_vehicle_stage(
             for name, _ in STAGE_QUANTITIES
             if name in stage.quantities and any(getattr(f, name) is not None for f in frames)
         }
-        found = stage.references(every, stacked("time_s"), given, counts, stacked("low_pass_s"))
+        found = stage.references(
+            every,
+            stacked("time_s"),
+            given,
+            counts,
+            stacked("low_pass_s"),
+            *(_speeds_and_ranges(frames, width) if stage.alike else (None, None)),
+        )
         for name, into in STAGE_QUANTITIES:
             if name not in found:
                 continue

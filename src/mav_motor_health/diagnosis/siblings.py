@@ -15,11 +15,24 @@ docs/flight.md, "The torque balance against its siblings".
 The reference of a sample of motor m at time t is the median of the other motors' latest residuals that
 reached the core before it, in the order the live agent receives samples (time, then motor number: a
 sibling's sample of the same instant counts where its number is lower) and are at most the sample's own
-low-pass time old (``frame.low_pass_s``: an older value is not of the same air). Where fewer than all
-but one of the vehicle's other motors have one, there is none (NaN) and the torque is not judged there:
-one motor without a residual (its ESC silent, a lost packet) is tolerated, two are not. Replay calls
+low-pass time old (``frame.low_pass_s``: an older value is not of the same air). Where fewer than three
+of the vehicle's other motors have one (all but one where it has fewer than five others), there is none
+(NaN) and the torque is not judged there: a median of three holds against one sibling that departs (a
+faulty motor, or one the model is carried far beyond its identified speeds for). Replay calls
 :meth:`VehicleStage.references` once with every motor's whole log; the live agent with each batch, the
 latest value of every motor carried between calls: both give the same references.
+
+**Beyond the identified speeds.** What the siblings share is the same only where they turn alike: the
+model's error depends on the speed, and beyond the speeds the identification flight covered it is an
+extrapolation that grows with the distance. On held-out world 1018 in gusty air the vehicle flew for
+15 s with three motors saturated at full command (422 rad/s, a third beyond their identified top) and three
+at 0.77 (343 rad/s); the saturated three's torque residuals (0.065 N·m) were the median of a motor at
+343 rad/s whose own read 0.02, and it was named F3.1 (docs/flight.md). So a sibling's value whose model
+speed lay beyond its identified range (widened by the profile's ``range_margin``, as the rules judge,
+:mod:`.rules.judged`) is a reference only for a motor within :attr:`VehicleStage.alike` (the same
+``range_margin``, as a share of the motor's speed) of its speed; in its range it is one at any speed.
+The motors compensating a failed one run beyond their range together, at one speed, and stay each
+other's references.
 
 The same stage takes a second look across motors where the profile grows its bands beyond the noise's
 conditions as the siblings run (``conditions_siblings``, :mod:`.rules.bands`): each motor's low-passed
@@ -48,6 +61,10 @@ STAGE_QUANTITIES = (
     ("live_z2_current", "siblings_z2_current"),
 )
 
+#: the other motors' values a reference needs: a median of three holds against one that departs (the
+#: faulty motor, or one the model is carried far beyond its identified speeds for); a quadcopter's all but one
+MEDIAN_OF = 3
+
 
 @dataclass
 class VehicleStage:
@@ -58,8 +75,13 @@ class VehicleStage:
     motors: list[int] = field(default_factory=list)
     #: the frame fields of :data:`STAGE_QUANTITIES` the stage takes (what a rule after it reads)
     quantities: tuple[str, ...] = ()
-    #: quantity → motor → (time [s], value) of its latest finite value
-    latest: dict[str, dict[int, tuple[float, float]]] = field(default_factory=dict)
+    #: quantity → motor → (time [s], value, model speed [rad/s], whether that speed lay in the motor's
+    #: identified range) of its latest finite value
+    latest: dict[str, dict[int, tuple[float, float, float, bool]]] = field(default_factory=dict)
+    #: quantity → how far, as a share of a motor's model speed, a sibling's may lie from it and still be
+    #: a reference where the sibling's own lies beyond its identified range (the torque: the profile's
+    #: ``range_margin``; module doc, "Beyond the identified speeds"); other quantities take every sibling
+    alike: dict[str, float] = field(default_factory=dict)
 
     def references(
         self,
@@ -68,11 +90,15 @@ class VehicleStage:
         values: Mapping[str, NDArray[np.float64]],
         counts: Sequence[int],
         max_age_s: NDArray[np.float64],
+        speed_rad_s: NDArray[np.float64] | None = None,
+        in_range: NDArray[np.bool_] | None = None,
     ) -> dict[str, NDArray[np.float64]]:
         """The siblings' reference of each quantity in ``values`` at each sample of rows of motors
-        (module doc): ``time_s``, ``max_age_s`` and each of ``values`` 2-D, one row per motor of
-        ``motors``, each row's first ``counts`` samples its own (the rest padding: NaN in the result).
-        Advances the carried latest values."""
+        (module doc): ``time_s``, ``max_age_s``, each of ``values``, and for the quantities of
+        :attr:`alike` ``speed_rad_s`` (each sample's model speed) and ``in_range`` (whether it lies in the
+        motor's identified range; both None: every sibling counts), 2-D, one row per motor of ``motors``,
+        each row's first ``counts`` samples its own (the rest padding: NaN in the result). Advances the
+        carried latest values."""
         rows, width = np.shape(time_s)
         names = list(values)
         out = {name: np.full((rows, width), np.nan) for name in names}
@@ -95,8 +121,14 @@ class VehicleStage:
         held = len(carried)
         t = np.concatenate([[c[2] for c in carried], time_s[r_at, c_at]])
         v = np.full((len(names), t.size), np.nan)
-        for i, (q, _, _, value) in enumerate(carried):
+        for i, (q, _, _, value, _, _) in enumerate(carried):
             v[q, i] = value
+        judging_alike = speed_rad_s is not None and in_range is not None
+        own_speed, own_range = np.full(r_at.size, np.nan), np.ones(r_at.size, dtype=bool)
+        if speed_rad_s is not None and in_range is not None:
+            own_speed, own_range = speed_rad_s[r_at, c_at], in_range[r_at, c_at]
+        speeds = np.concatenate([[c[4] for c in carried], own_speed])
+        trusted = np.concatenate([[c[5] for c in carried], own_range]).astype(bool)
         for q, name in enumerate(names):
             v[q, held:] = values[name][r_at, c_at]
         who = np.concatenate(
@@ -105,6 +137,7 @@ class VehicleStage:
         age_limit = np.concatenate([np.full(held, -np.inf), max_age_s[r_at, c_at]])
         order = np.lexsort((np.asarray(self.motors)[who], t))  # arrival: time, then motor number
         t, v, who, age_limit = t[order], v[:, order], who[order], age_limit[order]
+        speeds, trusted = speeds[order], trusted[order]
         # each motor's (column's) latest finite value at or before each place in the stream, every
         # quantity at once: (quantities, stream, columns)
         k = np.arange(t.size)
@@ -116,8 +149,16 @@ class VehicleStage:
         at = np.maximum(last, 0)
         fresh = have & (t[:, None] - t[at] <= age_limit[:, None]) & ~mine[None]
         latest = np.take_along_axis(v, at.reshape(len(names), -1), axis=1).reshape(at.shape)
+        for q, name in enumerate(names):
+            share = self.alike.get(name)
+            if share is not None and judging_alike:
+                # a sibling beyond its identified speeds carries the model's error there: a reference only
+                # at this motor's own speed (module doc, "Beyond the identified speeds")
+                with np.errstate(invalid="ignore"):
+                    near = np.abs(speeds[at[q]] - speeds[:, None]) <= share * np.abs(speeds[:, None])
+                fresh[q] &= trusted[at[q]] | near
         others = np.where(fresh, latest, np.nan)
-        need = max(1, len(self.motors) - 2)  # all but one of the other motors
+        need = min(MEDIAN_OF, max(1, len(self.motors) - 2))  # three others, or all but one where fewer
         reference = median_of_finite(others.reshape(-1, len(self.motors)), need).reshape(len(names), -1)
         back = np.empty(t.size, dtype=np.intp)
         back[order] = k
@@ -125,7 +166,13 @@ class VehicleStage:
             out[name][r_at, c_at] = reference[q, back[held:]]
             kept = self.latest.setdefault(name, {})
             for j in np.flatnonzero(have[q, -1]).tolist():
-                kept[self.motors[j]] = (float(t[at[q, -1, j]]), float(v[q, at[q, -1, j]]))
+                j_at = at[q, -1, j]
+                kept[self.motors[j]] = (
+                    float(t[j_at]),
+                    float(v[q, j_at]),
+                    float(speeds[j_at]),
+                    bool(trusted[j_at]),
+                )
         return out
 
 

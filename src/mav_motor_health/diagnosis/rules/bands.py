@@ -13,8 +13,9 @@ judged samples in its identified speed range (time constant ``conditions_sibling
 stage (:mod:`..siblings`) takes the median of the other motors' latest, and :class:`SiblingBands` grows
 the bands beyond the conditions by ``m·√(median)`` (m = ``conditions_siblings``), never by less than 1
 and never by more than ``excess ** conditions_growth``: a motor is judged against how its siblings run,
-not against itself (a fault's own departure never widens its band), and where fewer than all but one of
-its siblings have a value the growth is the excess's alone. Within the conditions nothing changes.
+not against itself (a fault's own departure never widens its band), and where fewer than three of its
+siblings (all but one on a smaller vehicle, :mod:`..siblings`) have a value the growth is the excess's
+alone. Within the conditions nothing changes.
 """
 
 from __future__ import annotations

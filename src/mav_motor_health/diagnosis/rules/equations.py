@@ -32,7 +32,7 @@ So the torque is judged against its siblings (:mod:`..siblings`): ``r_T`` minus 
 motors' ``r_T``, against that difference's own noise (``[noise.N] torque_vs_siblings_nm ...``), which
 takes off what all motors share (the ripple, and the one model's error at an operating point the
 identification flight did not cover) and keeps what one motor does alone. Where the sample has no such
-reference (fewer than all but one sibling reporting), its torque is not judged. A vehicle file from
+reference (fewer than three siblings reporting, :mod:`..siblings`), its torque is not judged. A vehicle file from
 before (the torque's own noise only) is judged in ``r_T`` itself where the ESC reports its motor's own
 current, and by the deviations where ``torque_residual_through_duty = 1`` marks an input current.
 
