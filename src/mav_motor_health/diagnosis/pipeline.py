@@ -237,7 +237,7 @@ def vehicle_stage(
     if not quantities:
         return None
     # the torque against siblings at its own speed, within the margin the model is trusted beyond its
-    # identified speeds (siblings.py, "At the same speed")
+    # identified speeds (siblings.py, "Beyond the identified speeds")
     alike = {"torque_residual_nm": profile.range_margin} if profile.range_margin > 0 else {}
     return VehicleStage([int(m) for m in motors], tuple(quantities), alike=alike)
 

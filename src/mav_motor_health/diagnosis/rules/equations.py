@@ -32,9 +32,10 @@ So the torque is judged against its siblings (:mod:`..siblings`): ``r_T`` minus 
 motors' ``r_T``, against that difference's own noise (``[noise.N] torque_vs_siblings_nm ...``), which
 takes off what all motors share (the ripple, and the one model's error at an operating point the
 identification flight did not cover) and keeps what one motor does alone. Where the sample has no such
-reference (fewer than three siblings reporting, :mod:`..siblings`), its torque is not judged. A vehicle file from
-before (the torque's own noise only) is judged in ``r_T`` itself where the ESC reports its motor's own
-current, and by the deviations where ``torque_residual_through_duty = 1`` marks an input current.
+reference (fewer than three siblings reporting, or those beyond their identified speeds at another speed:
+:mod:`..siblings`), its torque is not judged. A vehicle file from before (the torque's own noise only) is
+judged in ``r_T`` itself where the ESC reports its motor's own current, and by the deviations where
+``torque_residual_through_duty = 1`` marks an input current.
 
 The sequential test (:mod:`.announce`) reads the same ``z_T`` for F1.1 and F3.1 where it is judged here
 (``frame.z_torque``, NaN elsewhere). What stays with the deviations: the stop speed and the stall's
