@@ -12,7 +12,13 @@ import pytest
 
 from mav_motor_health.cli import main
 from mav_motor_health.config import dump_vehicle_params, load_motor_params, load_profile, load_vehicle_params
-from mav_motor_health.diagnosis.noise import BandNoise, NoiseRows, band_noise_of, measure_band_noise
+from mav_motor_health.diagnosis.noise import (
+    BandNoise,
+    EquationNoise,
+    NoiseRows,
+    band_noise_of,
+    measure_band_noise,
+)
 from mav_motor_health.diagnosis.pipeline import StreamingDiagnoser, diagnose
 from mav_motor_health.diagnosis.plausibility import SensorIssue
 from mav_motor_health.diagnosis.states import MotorState
@@ -692,6 +698,39 @@ def test_noise_rows_give_each_motor_what_its_own_noise_gives() -> None:
     assert not np.array_equal(got["after step"][2], got["after step"][4])
     assert got["range"][0].mean() != got["range"][3].mean()
     assert np.isinf(got["sigmas"][1][1]).all() and np.isfinite(got["sigmas"][1][0]).all()
+
+
+def test_noise_rows_give_each_motor_the_torque_noise_it_is_judged_with() -> None:
+    """The torque band of every motor in one pass (rules/bands.py): each row is what its motor's own
+    ``torque_judged`` gives, against the siblings, its own torque, or none (NaN: an input current read
+    through the duty, or no torque noise at all), with and without the pairing's growth."""
+    rng = np.random.default_rng(43)
+    base = BandNoise(3.0, 0.2, 4.0, 0.5)
+    noise = [
+        dataclasses.replace(base, torque=EquationNoise(0.01, 0.02, 0.001)),
+        dataclasses.replace(
+            base,
+            torque=EquationNoise(0.02, through_duty=True),
+            torque_vs_siblings=EquationNoise(0.008, 0.013),
+        ),
+        dataclasses.replace(base, torque=EquationNoise(0.03, 0.01, through_duty=True)),  # not judged
+        base,  # no torque noise
+        dataclasses.replace(base, torque_vs_siblings=EquationNoise(0.005, 0.0, 0.002)),
+    ]
+    rows = NoiseRows.of(noise)
+    activity = np.abs(rng.normal(0.0, 0.8, (5, 150)))
+    activity[rng.random(activity.shape) < 0.05] = math.nan
+    pairing = np.abs(rng.normal(0.0, 6.0, activity.shape))
+    for e in (pairing, None):
+        got = rows.torque_sigmas(activity, e)
+        for r, own in enumerate(noise):
+            judged = own.torque_judged
+            if judged is None:
+                assert np.isnan(got[r]).all()
+            else:
+                want = judged.sigmas(activity[r], None if e is None else e[r])
+                np.testing.assert_array_equal(got[r], want, err_msg=f"motor {r + 1}")
+    assert not np.array_equal(got[0], got[1])
 
 
 def test_noise_rows_are_made_once_for_the_same_noise_and_never_for_other_noise() -> None:

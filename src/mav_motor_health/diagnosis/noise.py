@@ -92,7 +92,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -358,6 +358,18 @@ class NoiseRows(_ConditionsMath):
     current_a_per_pairing: NDArray[np.float64]
     pairing_error_high_rad_s: NDArray[np.float64]
     after_step_table: NDArray[np.float64]
+    #: the torque noise each motor is judged with (:attr:`BandNoise.torque_judged`): σ₀, its growth with
+    #: the activity and with the pairing, one row per motor (NaN: not judged in the torque)
+    torque_table: NDArray[np.float64] = field(default_factory=lambda: np.full((0, 3), np.nan))
+
+    def torque_sigmas(
+        self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
+        """Each row's torque σ(a, e) at its samples, what its motor's :attr:`BandNoise.torque_judged`
+        gives (:meth:`EquationNoise.sigmas`); NaN on the rows of motors not judged in the torque."""
+        a, e = _conditions(activity_v, pairing_error_rad_s)
+        sigma, per_activity, per_pairing = (self.torque_table[:, k : k + 1] for k in range(3))
+        return np.where(np.isfinite(sigma), _grown(sigma, per_activity, per_pairing, a, e), np.nan)
 
     @classmethod
     def of(cls, noise: Sequence[BandNoise]) -> NoiseRows:
@@ -372,9 +384,14 @@ class NoiseRows(_ConditionsMath):
             for name in _ROW_NUMBERS
         }
         table = np.concatenate([n.after_step_table for n in noise]).reshape(-1, AFTER_STEP_BINS)
-        for column in (*columns.values(), table):
+        judged = [n.torque_judged for n in noise]
+        torque = np.array(
+            [(j.sigma, j.per_activity, j.per_pairing) if j is not None else (np.nan,) * 3 for j in judged],
+            dtype=float,
+        ).reshape(-1, 3)
+        for column in (*columns.values(), table, torque):
             column.flags.writeable = False
-        rows = cls(**columns, after_step_table=table)
+        rows = cls(**columns, after_step_table=table, torque_table=torque)
         if len(_ROWS_MADE) >= _ROWS_HELD:
             _ROWS_MADE.clear()
         # the noise itself is held too: while it is, no other object can take its id, so the same ids are

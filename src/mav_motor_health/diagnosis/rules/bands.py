@@ -168,10 +168,7 @@ class Bands(Rule):
             current *= widen_current
             if torque is not None:
                 widest = np.broadcast_to(np.maximum(widen_speed, widen_current), shape)
-                for r, motor_noise in enumerate(noise):
-                    judged_torque = motor_noise.torque_judged
-                    if judged_torque is not None:
-                        torque[r] = judged_torque.sigmas(a[r], None if e is None else e[r]) * widest[r]
+                torque = frame.noise_as_rows().torque_sigmas(a, e) * widest
             frame.speed_band_rad_s = profile.noise_bands * speed
             frame.current_band_a = profile.noise_bands * current
             frame.current_band_below_a = frame.current_band_a.copy()
