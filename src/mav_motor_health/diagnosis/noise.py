@@ -92,7 +92,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -360,7 +360,7 @@ class NoiseRows(_ConditionsMath):
     after_step_table: NDArray[np.float64]
     #: the torque noise each motor is judged with (:attr:`BandNoise.torque_judged`): σ₀, its growth with
     #: the activity and with the pairing, one row per motor (NaN: not judged in the torque)
-    torque_table: NDArray[np.float64] = field(default_factory=lambda: np.full((0, 3), np.nan))
+    torque_table: NDArray[np.float64]
 
     def torque_sigmas(
         self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
