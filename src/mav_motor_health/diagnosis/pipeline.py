@@ -242,27 +242,6 @@ def vehicle_stage(
     return VehicleStage([int(m) for m in motors], tuple(quantities), alike=alike)
 
 
-def _speeds_and_ranges(
-    frames: Sequence[Frame | None], width: int
-) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-    """Every row's model speed and whether it lies in its motor's identified speed range (widened by the
-    profile's ``range_margin``; everywhere where a frame has no noise), stacked as the vehicle stage
-    takes them (rows × ``width``)."""
-    speeds, inside = [], []
-    for f in frames:
-        assert f is not None
-        pad = width - f.shape[1]
-        w = f.omega_model_rad_s
-        ok = (
-            np.ones(f.shape, dtype=bool)
-            if f.noise is None
-            else f.noise_as_rows().in_speed_range(w, f.profile.range_margin)
-        )
-        speeds.append(np.pad(w, ((0, 0), (0, pad)), constant_values=np.nan))
-        inside.append(np.pad(ok, ((0, 0), (0, pad)), constant_values=False))
-    return np.concatenate(speeds), np.concatenate(inside)
-
-
 def run_vehicle_stage(
     stage: VehicleStage | None, calls: Sequence[tuple[Sequence[int], StartedCall]]
 ) -> list[tuple[dict[str, NDArray], list[MotorCarry]]]:
@@ -277,8 +256,8 @@ def run_vehicle_stage(
         frames = [call.frame for _, call in staged]
         width = max(f.shape[1] for f in frames if f is not None)
 
-        def stacked(name: str) -> NDArray[np.float64]:
-            out = np.full((sum(f.shape[0] for f in frames if f is not None), width), np.nan)
+        def stacked(name: str, fill: float | bool = np.nan) -> NDArray[Any]:
+            out = np.full((sum(f.shape[0] for f in frames if f is not None), width), fill)
             r = 0
             for f in frames:
                 assert f is not None
@@ -301,7 +280,9 @@ def run_vehicle_stage(
             given,
             counts,
             stacked("low_pass_s"),
-            *(_speeds_and_ranges(frames, width) if stage.alike else (None, None)),
+            # each sample's model speed, and whether its motor's model was identified there
+            stacked("omega_model_rad_s") if stage.alike else None,
+            stacked("within_identified_speeds", False) if stage.alike else None,
         )
         for name, into in STAGE_QUANTITIES:
             if name not in found:

@@ -472,11 +472,11 @@ def balance_deviations_rows(
     sb_mean = sb_mean - p.R_ohm * accel_torque
     # unsigned readings: the zeros were currents at or below zero (see the module doc)
     e_mean = e_mean - p.R_ohm * (censored_mean(s_mean, zero_share) - s_mean)
+    mean_duty = np.where(d_mean >= MIN_MEAN_DUTY, d_mean, np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):
-        rv_mean = e_mean / np.where(d_mean >= MIN_MEAN_DUTY, d_mean, np.nan)
+        rv_mean = e_mean / mean_duty
         if through_duty is not None:
-            divided = p.k_t * s_mean / np.where(d_mean >= MIN_MEAN_DUTY, d_mean, np.nan)
-            m_mean = np.where(through_duty, m_mean + divided, m_mean)
+            m_mean = np.where(through_duty, m_mean + p.k_t * s_mean / mean_duty, m_mean)
     model = steady_state(p, v_mean)
     _, d = linearised_slopes(p, model.omega_rad_s)
     delta_w = -sb_mean / d

@@ -73,7 +73,7 @@ class LiveNoise(Rule):
         frame.sigma_speed_rad_s, frame.sigma_current_a = speed, current
         rows, n = frame.shape
         counted = frame.steady & (np.arange(n)[None, :] < np.asarray(frame.counts)[:, None])
-        counted &= frame.noise_as_rows().in_speed_range(frame.omega_model_rad_s, profile.range_margin)
+        counted &= frame.within_identified_speeds
         with np.errstate(divide="ignore", invalid="ignore"):
             z2 = np.concatenate(
                 [

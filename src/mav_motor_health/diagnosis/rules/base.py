@@ -172,6 +172,16 @@ class Frame:
         assert self.noise is not None
         return NoiseRows.of(self.noise)
 
+    @property
+    def within_identified_speeds(self) -> NDArray[np.bool_]:
+        """Where the model speed lies in each motor's identified speed range, widened by the profile's
+        ``range_margin`` (everywhere where the frame has no noise): where the rules judge a motor against
+        its model (:mod:`.judged`), count its live noise (:mod:`.bands`) and take its torque as a
+        reference at any speed (:mod:`..siblings`)."""
+        if self.noise is None:
+            return np.ones(self.shape, dtype=bool)
+        return self.noise_as_rows().in_speed_range(self.omega_model_rad_s, self.profile.range_margin)
+
     def current_trusted(self) -> NDArray[np.bool_]:
         """Where the current may be used: a plausible sensor and a measurement."""
         return ((self.sensor_flags & CURRENT_UNTRUSTED) == 0) & np.isfinite(self.current_a)
