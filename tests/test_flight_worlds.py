@@ -211,3 +211,38 @@ def test_percentiles_count_a_fault_never_announced_as_the_worst():
     assert percentile([0.2, math.inf, 0.3], 90.0) == math.inf
     assert percentile([0.2, math.inf, math.inf], 50.0) == math.inf
     assert math.isnan(percentile([], 50.0))
+
+
+def test_once_announced_an_open_transistor_reads_on_the_samples_its_departure_holds(tmp_path):
+    """The shipped profile's ``hold_sigmas`` (diagnosis/detection.py, "Once announced"), on a world
+    identified from a 40-s flight, an open transistor in moderate air: what the sequential test reads and
+    announces is the same with it and without; the samples it reads again are the faulty motor's, after
+    the announcement, that the tree read NORMAL, and now read F4.1; the accuracy after onset rises."""
+    import dataclasses
+
+    from mav_motor_health.config import load_profile
+    from mav_motor_health.diagnosis.states import MotorState
+
+    _, _, vehicle = identify_world(KNOWN, tmp_path, identification_s=40.0)
+    flight = world_flights(KNOWN, duration_s=20.0, healthy_flights=0, levels=("moderate",), faults=("F4.1",))[
+        0
+    ]
+    shipped = load_profile("flight_vehicle")
+    assert shipped.detection.hold_sigmas > 0
+    off = dataclasses.replace(shipped, detection=dataclasses.replace(shipped.detection, hold_sigmas=0.0))
+    folder = tmp_path / "flights"
+    folder.mkdir()
+    held = diagnose_flight(flight, folder, vehicle, shipped)
+    plain = diagnose_flight(flight, folder, vehicle, off)
+    np.testing.assert_array_equal(held["announced"], plain["announced"])
+    np.testing.assert_array_equal(held["detection_level"], plain["detection_level"])
+    changed = held["state"] != plain["state"]
+    assert changed.sum() > 10
+    assert (held["motor"][changed] == flight.motor).all()
+    assert (held["time_s"][changed] > flight.onset_s).all()
+    assert (plain["state"][changed] == MotorState.NORMAL).all()
+    assert (held["state"][changed] == MotorState.F4_1).all()
+    assert (held["announced"][changed] == MotorState.F4_1).all()
+    after = (held["motor"] == flight.motor) & (held["time_s"] > flight.onset_s) & held["steady"].astype(bool)
+    accuracy = [(r["state"][after] == MotorState.F4_1).mean() for r in (plain, held)]
+    assert accuracy[1] > accuracy[0] + 0.05, accuracy

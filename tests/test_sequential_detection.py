@@ -18,6 +18,7 @@ from mav_motor_health.diagnosis.detection import (
     average_run_length,
     design_threshold,
     direction_evidence,
+    held_states,
     named_evidence,
     report_credit,
     sequential_alarms,
@@ -389,3 +390,43 @@ def test_a_direction_gains_only_on_samples_the_tree_named_that_way() -> None:
     first_every = alarms(named_evidence(evidence, every, 2.5))[0]
     first_other = alarms(named_evidence(evidence, other, 2.5))[0]
     assert 1500 < first_every < first_other < 1500 + 30  # both within a second
+
+
+def test_once_announced_a_sample_departing_that_way_by_the_hold_reads_as_the_fault() -> None:
+    """``hold_sigmas`` (detection.py, "Once announced"): a judged sample the tree read NORMAL reads as
+    the direction announced at it where its departure that way is at least the hold; not where nothing
+    is announced, not where it departs another way, not a sample the tree named otherwise or did not
+    judge."""
+    f41, f11 = DIRECTIONS.index(MotorState.F4_1), DIRECTIONS.index(MotorState.F1_1)
+    n = 8
+    evidence = np.zeros((len(DIRECTIONS), n))
+    evidence[f41] = [3.0, 3.0, 2.4, 2.5, 3.0, 0.0, 3.0, 3.0]
+    evidence[f11, 5] = 4.0  # departs the other way
+    alarms = np.full(n, int(MotorState.F4_1), dtype=np.int8)
+    alarms[1] = MotorState.NORMAL  # nothing announced there
+    state = np.full(n, int(MotorState.NORMAL), dtype=np.int8)
+    state[6] = MotorState.F1_1  # the tree named something else
+    judged = np.ones(n, dtype=bool)
+    judged[7] = False
+    held, toward = held_states(state, alarms, evidence, judged, 2.5)
+    np.testing.assert_array_equal(held, [True, False, False, True, True, False, False, False])
+    np.testing.assert_array_equal(toward, [3.0, 0.0, 2.4, 2.5, 3.0, 0.0, 3.0, 3.0])
+    # rows of motors, as the rule gives them
+    held2, _ = held_states(
+        state[None].repeat(2, 0),
+        alarms[None].repeat(2, 0),
+        evidence[:, None].repeat(2, 1),
+        judged[None].repeat(2, 0),
+        2.5,
+    )
+    np.testing.assert_array_equal(held2, np.stack([held, held]))
+    with pytest.raises(ConfigError, match="hold_sigmas"):
+        SequentialRule(false_alarms_per_100h=1.0, hold_sigmas=-1.0)
+
+
+def test_the_hold_is_the_reference_in_the_shipped_profile_and_written_back(tmp_path) -> None:
+    shipped = load_profile("flight_vehicle")
+    assert shipped.detection.hold_sigmas == shipped.detection.reference_sigmas  # no new number
+    path = tmp_path / "held.toml"
+    path.write_text(dump_profile(shipped), encoding="utf-8")
+    assert load_profile(path) == shipped

@@ -294,6 +294,7 @@ _DETECTION_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "false_alarms_per_100h": (0.0, None, ""),
     "reference_sigmas": (None, None, "sigma"),
     "min_observations": (0.0, None, ""),
+    "hold_sigmas": (0.0, None, "sigma"),
 }
 _PERSISTENCE_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "default_announce_s": (0.0, None, "s"),
@@ -490,6 +491,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
             f"reference_sigmas = {d.reference_sigmas!r}",
             f"min_observations = {d.min_observations!r}",
         ]
+        if d.hold_sigmas:
+            lines.append(f"hold_sigmas = {d.hold_sigmas!r}")
     lines += ["", "[plausibility]"]
     lines += [f"{name} = {value!r}" for name, value in profile.plausibility.__dict__.items()]
     if source:

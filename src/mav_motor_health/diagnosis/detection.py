@@ -71,6 +71,16 @@ only a later rule name it, seconds later (docs/flight.md, "A cap on each sample'
 Below the cap nothing changes, and the design's false-alarm rate under its own noise model can only
 fall.
 
+**Once announced.** The tree reads each sample against bands of ``noise_bands`` σ, so that a healthy motor
+reads NORMAL on all but a few samples in a million; a fault that departs by about as much (an open
+transistor in busier air than identification's, 4 to 5 σ) reads NORMAL on half its samples, and the
+announcement, which the test holds until its sum has fallen back to 0, says otherwise. With the rule's
+``hold_sigmas`` (the profile sets it to the reference k), while a direction is announced on a motor, a
+judged sample the tree read NORMAL that departs that way by at least that many σ reads as the fault: the
+two thresholds of a hysteresis, the band to enter, k to stay. Nothing the test reads changes (it has
+run when the samples are read again): the announcements, their delay and the false alarms are the same
+with it and without; a healthy motor's samples read a fault only while a false alarm stands.
+
 Stalls, sensor faults and NO_DATA keep :mod:`.persistence` (a motor below the stop speed is a physical
 fact, not a statistical one) and take precedence over the directions.
 """
@@ -100,6 +110,7 @@ __all__ = [
     "design_threshold",
     "direction_evidence",
     "equation_evidence",
+    "held_states",
     "named_evidence",
     "report_credit",
     "report_credits",
@@ -147,6 +158,9 @@ class SequentialRule:
     #: each sample's evidence is capped at ``k + h / min_observations``, so no single sample, however far
     #: off, is an alarm on its own (module doc, "Outliers")
     min_observations: float = 0.0
+    #: while a direction is announced, a judged sample the tree read NORMAL that departs that way by at
+    #: least this many σ reads as that fault (0: never; module doc, "Once announced")
+    hold_sigmas: float = 0.0
 
     def __post_init__(self) -> None:
         if not (self.false_alarms_per_100h == 0 or 1e-6 <= self.false_alarms_per_100h <= 1e6):
@@ -164,6 +178,11 @@ class SequentialRule:
                 f"{self.min_observations!r}",
                 key="detection.min_observations",
                 expected="0 (no floor) to 100 independent observations",
+            )
+
+        if not 0 <= self.hold_sigmas <= 10:
+            raise ConfigError(
+                f"{self.hold_sigmas!r}", key="detection.hold_sigmas", expected="0 (never) to 10 (sigma)"
             )
 
     @property
@@ -212,6 +231,23 @@ def named_evidence(
     codes = np.array([int(d) for d in DIRECTIONS]).reshape((-1,) + (1,) * np.ndim(state))
     named = np.asarray(state)[None] == codes
     return np.where(named, evidence, np.minimum(evidence, reference_sigmas))
+
+
+def held_states(
+    state: NDArray[np.integer],
+    alarms: NDArray[np.integer],
+    evidence: NDArray[np.float64],
+    judged: NDArray[np.bool_],
+    hold_sigmas: float,
+) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+    """Where a judged sample the tree read NORMAL departs by at least ``hold_sigmas`` σ in the direction
+    announced at it (``evidence``: each of :data:`DIRECTIONS`' first, as the test read it; module doc,
+    "Once announced"): those samples read as the announced fault. Returns them, and each sample's
+    departure in the announced direction [σ] (0 where none is announced)."""
+    codes = np.array([int(d) for d in DIRECTIONS]).reshape((-1,) + (1,) * np.ndim(alarms))
+    toward = np.max(np.where(np.asarray(alarms)[None] == codes, evidence, 0.0), axis=0)
+    held = (toward >= hold_sigmas) & judged & (np.asarray(state) == MotorState.NORMAL)
+    return held, toward
 
 
 def report_credit(

@@ -14,6 +14,7 @@ from ..detection import (
     SequentialCarry,
     direction_evidence,
     equation_evidence,
+    held_states,
     named_evidence,
     sequential_alarms_rows,
 )
@@ -39,7 +40,9 @@ _NOT_DIRECTIONS = (
 @dataclass(frozen=True)
 class Sequential(Rule):
     """A CUSUM per fault direction on the deviations in σ of the motor's noise (``[detection]``): writes
-    ``alarms`` and ``detection_level``, and leaves the directions to it (``announced_elsewhere``)."""
+    ``alarms`` and ``detection_level``, and leaves the directions to it (``announced_elsewhere``); with
+    ``hold_sigmas``, ``state`` and ``depth`` again where a NORMAL sample departs the announced way by
+    that many σ (:mod:`..detection`, "Once announced")."""
 
     name = "sequential"
     profile: ThresholdProfile
@@ -70,6 +73,7 @@ class Sequential(Rule):
         # the tree names the fault, the test says when it has lasted: a direction gains only on samples
         # the tree (and the rules after it) named that way; elsewhere its evidence counts at most the
         # reference (no gain, and no more loss than the sample's own departure gives)
+        read = evidence
         evidence = named_evidence(evidence, frame.state, profile.detection.reference_sigmas)
         # judged: the steady samples the tree named a motor state on (not a stall, a bad sensor, no data)
         judged = frame.steady & ~one_of(frame.state, _NOT_DIRECTIONS)
@@ -86,6 +90,14 @@ class Sequential(Rule):
         )
         frame.alarms, frame.detection_level = alarms, level
         frame.announced_elsewhere = tuple(int(d) for d in DIRECTIONS)
+        hold = profile.detection.hold_sigmas
+        if hold > 0:
+            # once announced, a sample departing that way by the hold's σ reads as the fault (detection.py,
+            # "Once announced"); after the test, which these states do not feed
+            held, toward = held_states(frame.state, alarms, read, judged, hold)
+            if held.any():
+                frame.state = np.where(held, alarms, frame.state).astype(frame.state.dtype)
+                frame.depth = np.where(held, toward / profile.noise_bands, frame.depth)
         return new
 
 
