@@ -222,14 +222,18 @@ class SequentialCarry:
     intervals: tuple[float, ...] = (math.inf,) * CREDIT_INTERVALS
 
 
+def _direction_codes(ndim: int) -> NDArray[np.int64]:
+    """The codes of :data:`DIRECTIONS`, shaped to compare with states of ``ndim`` dimensions."""
+    return np.array([int(d) for d in DIRECTIONS]).reshape((-1,) + (1,) * ndim)
+
+
 def named_evidence(
     evidence: NDArray[np.float64], state: NDArray[np.integer], reference_sigmas: float
 ) -> NDArray[np.float64]:
     """Each direction's evidence (directions first, then the samples' shape) where the sample's state is
     that direction's (the tree named it), and at most ``reference_sigmas`` elsewhere (module doc,
     "Named by the tree"): no sample the tree calls something else adds to a direction's sum."""
-    codes = np.array([int(d) for d in DIRECTIONS]).reshape((-1,) + (1,) * np.ndim(state))
-    named = np.asarray(state)[None] == codes
+    named = np.asarray(state)[None] == _direction_codes(np.ndim(state))
     return np.where(named, evidence, np.minimum(evidence, reference_sigmas))
 
 
@@ -244,8 +248,9 @@ def held_states(
     announced at it (``evidence``: each of :data:`DIRECTIONS`' first, as the test read it; module doc,
     "Once announced"): those samples read as the announced fault. Returns them, and each sample's
     departure in the announced direction [σ] (0 where none is announced)."""
-    codes = np.array([int(d) for d in DIRECTIONS]).reshape((-1,) + (1,) * np.ndim(alarms))
-    toward = np.max(np.where(np.asarray(alarms)[None] == codes, evidence, 0.0), axis=0)
+    toward = np.max(
+        np.where(np.asarray(alarms)[None] == _direction_codes(np.ndim(alarms)), evidence, 0.0), axis=0
+    )
     held = (toward >= hold_sigmas) & judged & (np.asarray(state) == MotorState.NORMAL)
     return held, toward
 
