@@ -179,7 +179,6 @@ class SequentialRule:
                 key="detection.min_observations",
                 expected="0 (no floor) to 100 independent observations",
             )
-
         if not 0 <= self.hold_sigmas <= 10:
             raise ConfigError(
                 f"{self.hold_sigmas!r}", key="detection.hold_sigmas", expected="0 (never) to 10 (sigma)"
