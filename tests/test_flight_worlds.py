@@ -246,3 +246,62 @@ def test_once_announced_an_open_transistor_reads_on_the_samples_its_departure_ho
     after = (held["motor"] == flight.motor) & (held["time_s"] > flight.onset_s) & held["steady"].astype(bool)
     accuracy = [(r["state"][after] == MotorState.F4_1).mean() for r in (plain, held)]
     assert accuracy[1] > accuracy[0] + 0.05, accuracy
+    # the live agent's way: the same flight in batches cut in arrival order (time, then motor), every
+    # motor's samples of a batch in one call, gives the same states, the held ones among them
+    _streams_as_replay(flight, tmp_path, vehicle, shipped, held)
+
+
+def _streams_as_replay(flight, tmp_path, vehicle, profile, whole) -> None:
+    import warnings
+
+    from mav_motor_health.diagnosis.noise import band_noise_of
+    from mav_motor_health.diagnosis.pipeline import MotorBatch, StreamingDiagnoser
+    from mav_motor_health.sim.writers import write_record
+    from mav_motor_health.telemetry import sources
+
+    log = tmp_path / "streamed.tlog"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        write_record(fly_flight(flight), log)
+        table = vehicle.calibrate(sources.read(log))
+    columns = {
+        "voltage_v": "voltage_v",
+        "omega_rad_s": "omega_rad_s",
+        "current_a": "current_a",
+        "bus_voltage_v": "bus_voltage_v",
+        "throttle": "command",
+        "esc_current_a": "sensor_current_a",
+        "pairing_s": "pairing_s",
+        "input_excursion_v": "input_excursion_v",
+    }
+    cols = {
+        name: np.asarray(table[name], dtype=float) for name in ("time_s", *columns) if name in table.names
+    }
+    motor = np.asarray(table["motor"]).astype(int)
+    np.testing.assert_array_equal(motor, whole["motor"])
+    np.testing.assert_array_equal(cols["time_s"], whole["time_s"])
+    motors = sorted(set(motor.tolist()))
+    stream = StreamingDiagnoser(vehicle.models(range(1, 7)), profile, motors, band_noise_of(vehicle.noise))
+    measured = np.isfinite(cols["omega_rad_s"]) | np.isfinite(cols["current_a"])
+    arrival = np.lexsort((motor, cols["time_s"]))
+    arrival = arrival[measured[arrival]]
+    got = np.full(motor.size, -1)
+    rng = np.random.default_rng(30)
+    k = 0
+    while k < arrival.size:
+        part = arrival[k : k + int(rng.integers(1, 40))]
+        k += part.size
+        batches = {}
+        for m in np.unique(motor[part]).tolist():
+            rows = part[motor[part] == m]
+            fields = {columns[name]: cols[name][rows] for name in columns if name in cols}
+            batches[m] = (
+                MotorBatch(
+                    time_s=cols["time_s"][rows], **fields, extra_flags=np.zeros(rows.size, dtype=np.int16)
+                ),
+                rows,
+            )
+        results = stream.update_motors({m: b for m, (b, _) in batches.items()})
+        for m, (_, rows) in batches.items():
+            got[rows] = results[m]["state"]
+    np.testing.assert_array_equal(got[measured], whole["state"][measured])
