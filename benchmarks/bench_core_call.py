@@ -35,25 +35,12 @@ from mav_motor_health.diagnosis.noise import band_noise_of
 from mav_motor_health.diagnosis.pipeline import MotorBatch, StreamingDiagnoser
 from mav_motor_health.telemetry import sources
 
-#: the table's columns a call takes, and the MotorBatch field each goes to
-COLUMNS = {
-    "time_s": "time_s",
-    "voltage_v": "voltage_v",
-    "omega_rad_s": "omega_rad_s",
-    "current_a": "current_a",
-    "bus_voltage_v": "bus_voltage_v",
-    "throttle": "command",
-    "esc_current_a": "sensor_current_a",
-    "pairing_s": "pairing_s",
-    "input_excursion_v": "input_excursion_v",
-}
-
 
 def calls_of(table, batch_s: float) -> list[dict[int, MotorBatch]]:
     """The agent's calls: every motor's samples of each ``batch_s`` of arrival (time, then motor)."""
     motor = np.asarray(table["motor"]).astype(int)
     time_s = np.asarray(table["time_s"], dtype=float)
-    present = [name for name in COLUMNS if name in table.names]
+    columns = {name: table[name] for name in table.names}
     # the vehicle's six motors (the flight's ESC_TELEMETRY_5_TO_8 carries two empty slots, which the
     # agent's reader drops)
     order = np.lexsort((motor, time_s))
@@ -66,9 +53,7 @@ def calls_of(table, batch_s: float) -> list[dict[int, MotorBatch]]:
         part = order[lo:hi]
         batches = {}
         for m in np.unique(motor[part]).tolist():
-            rows = part[motor[part] == m]
-            fields = {COLUMNS[name]: np.asarray(table[name], dtype=float)[rows] for name in present}
-            batches[m] = MotorBatch(**fields, extra_flags=np.zeros(rows.size, dtype=np.int16))
+            batches[m] = MotorBatch.of_columns(columns, part[motor[part] == m])
         if batches:
             calls.append(batches)
     return calls

@@ -264,19 +264,7 @@ def _streams_as_replay(flight, tmp_path, vehicle, profile, whole) -> None:
         warnings.simplefilter("ignore")
         write_record(fly_flight(flight), log)
         table = vehicle.calibrate(sources.read(log))
-    columns = {
-        "voltage_v": "voltage_v",
-        "omega_rad_s": "omega_rad_s",
-        "current_a": "current_a",
-        "bus_voltage_v": "bus_voltage_v",
-        "throttle": "command",
-        "esc_current_a": "sensor_current_a",
-        "pairing_s": "pairing_s",
-        "input_excursion_v": "input_excursion_v",
-    }
-    cols = {
-        name: np.asarray(table[name], dtype=float) for name in ("time_s", *columns) if name in table.names
-    }
+    cols = {name: table[name] for name in table.names}
     motor = np.asarray(table["motor"]).astype(int)
     np.testing.assert_array_equal(motor, whole["motor"])
     np.testing.assert_array_equal(cols["time_s"], whole["time_s"])
@@ -294,13 +282,7 @@ def _streams_as_replay(flight, tmp_path, vehicle, profile, whole) -> None:
         batches = {}
         for m in np.unique(motor[part]).tolist():
             rows = part[motor[part] == m]
-            fields = {columns[name]: cols[name][rows] for name in columns if name in cols}
-            batches[m] = (
-                MotorBatch(
-                    time_s=cols["time_s"][rows], **fields, extra_flags=np.zeros(rows.size, dtype=np.int16)
-                ),
-                rows,
-            )
+            batches[m] = (MotorBatch.of_columns(cols, rows), rows)
         results = stream.update_motors({m: b for m, (b, _) in batches.items()})
         for m, (_, rows) in batches.items():
             got[rows] = results[m]["state"]

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..diagnosis.noise import BandNoise
-from ..diagnosis.pipeline import RESIDUAL_COLUMNS, MotorBatch, StreamingDiagnoser
+from ..diagnosis.pipeline import BATCH_COLUMNS, RESIDUAL_COLUMNS, MotorBatch, StreamingDiagnoser
 from ..diagnosis.plausibility import CurrentSumCheck, SensorIssue
 from ..diagnosis.profile import ThresholdProfile
 from ..diagnosis.states import MotorState
@@ -45,17 +45,7 @@ _CORE_COLUMNS = (
     "esc_temp_c",
 )
 #: The core's inputs (:class:`~..diagnosis.pipeline.MotorBatch`'s names) and the columns they are.
-_CORE_INPUTS = {
-    "time_s": "time_s",
-    "voltage_v": "voltage_v",
-    "omega_rad_s": "omega_rad_s",
-    "current_a": "current_a",
-    "bus_voltage_v": "bus_voltage_v",
-    "command": "throttle",
-    "sensor_current_a": "esc_current_a",
-    "pairing_s": "pairing_s",
-    "input_excursion_v": "input_excursion_v",
-}
+_CORE_INPUTS = BATCH_COLUMNS
 #: Columns a source may leave out (the core then takes the sample as paired with the command of its own
 #: instant, which did not move between samples)
 _OPTIONAL = ("pairing_s", "input_excursion_v")

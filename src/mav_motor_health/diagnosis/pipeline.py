@@ -40,6 +40,7 @@ from .states import MotorState
 from .vehicle_check import VehicleCheck, VehicleFit, apply_vehicle_fit
 
 __all__ = [
+    "BATCH_COLUMNS",
     "DIAGNOSIS_COLUMNS",
     "RESIDUAL_COLUMNS",
     "MotorBatch",
@@ -105,6 +106,31 @@ class MotorBatch:
     #: table's ``input_excursion_v``; None: not at all, the command of each sample's own instant)
     input_excursion_v: NDArray[np.float64] | None = None
 
+    @classmethod
+    def of_columns(cls, columns: Mapping[str, NDArray[Any]], rows: NDArray[np.intp]) -> MotorBatch:
+        """The samples ``rows`` of one motor in a telemetry table's ``columns`` (by name, as calibrated:
+        :data:`BATCH_COLUMNS`; those absent None), with no extra sensor flags."""
+        fields: dict[str, Any] = {
+            name: np.asarray(columns[column], dtype=float)[rows]
+            for name, column in BATCH_COLUMNS.items()
+            if column in columns
+        }
+        return cls(**fields, extra_flags=np.zeros(np.size(rows), dtype=np.int16))
+
+
+#: :class:`MotorBatch`'s inputs and the telemetry table's columns they are (the live agent's batches, and
+#: :meth:`MotorBatch.of_columns`)
+BATCH_COLUMNS = {
+    "time_s": "time_s",
+    "voltage_v": "voltage_v",
+    "omega_rad_s": "omega_rad_s",
+    "current_a": "current_a",
+    "bus_voltage_v": "bus_voltage_v",
+    "command": "throttle",
+    "sensor_current_a": "esc_current_a",
+    "pairing_s": "pairing_s",
+    "input_excursion_v": "input_excursion_v",
+}
 
 #: :class:`MotorBatch`'s float columns that :meth:`StreamingDiagnoser.update_rows` takes as rows
 _ROW_INPUTS = (
