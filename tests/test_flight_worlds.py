@@ -229,6 +229,9 @@ def test_once_announced_an_open_transistor_reads_on_the_samples_its_departure_ho
     ]
     shipped = load_profile("flight_vehicle")
     assert shipped.detection.hold_sigmas > 0
+    # without the slow look (which names this flight's transistor on most samples by itself: the next
+    # test), to see what the hold reads
+    shipped = dataclasses.replace(shipped, slow_band_fraction=0.0)
     off = dataclasses.replace(shipped, detection=dataclasses.replace(shipped.detection, hold_sigmas=0.0))
     folder = tmp_path / "flights"
     folder.mkdir()
@@ -287,3 +290,98 @@ def _streams_as_replay(flight, tmp_path, vehicle, profile, whole) -> None:
         for m, (_, rows) in batches.items():
             got[rows] = results[m]["state"]
     np.testing.assert_array_equal(got[measured], whole["state"][measured])
+
+
+def test_the_slow_look_judged_in_its_own_noise_names_a_small_open_transistor(tmp_path):
+    """The shipped profile's slow look (rules/tree.py ``SlowLook``, noise.py "The slow look's own noise"):
+    identification measures each motor's slow averages' spread; on a world identified from a 40-s flight,
+    an open transistor in moderate air is named on more of its samples with the slow look than without,
+    no other motor is announced, and a vehicle file without the slow noise is judged as before.
+    The live agent's batches give replay's states with it."""
+    import dataclasses
+
+    from mav_motor_health.config import load_profile
+    from mav_motor_health.diagnosis.states import MotorState
+
+    _, _, vehicle = identify_world(KNOWN, tmp_path, identification_s=40.0)
+    for motor in range(1, 7):
+        noise = vehicle.noise[motor]
+        assert noise["slow_speed_rad_s"] > 0 and noise["slow_current_a"] > 0
+        # averaged longer, the healthy spread is narrower than the fast look's
+        assert noise["slow_speed_rad_s"] < noise["speed_rad_s"]
+    flight = world_flights(KNOWN, duration_s=20.0, healthy_flights=0, levels=("moderate",), faults=("F4.1",))[
+        0
+    ]
+    shipped = load_profile("flight_vehicle")
+    assert shipped.steady.slow_factor > 0 and shipped.slow_band_fraction == 1.0
+    # without the hold (which names this flight's transistor on most samples once it is announced), to
+    # see what the slow look reads by itself
+    shipped = dataclasses.replace(shipped, detection=dataclasses.replace(shipped.detection, hold_sigmas=0.0))
+    off = dataclasses.replace(shipped, slow_band_fraction=0.0)
+    folder = tmp_path / "flights"
+    folder.mkdir()
+    slow = diagnose_flight(flight, folder, vehicle, shipped)
+    plain = diagnose_flight(flight, folder, vehicle, off)
+    # the slow averages judged once they have filled: slow_factor times the fast look's start (at least
+    # 3 x activity_tau_s), never in each motor's first 4 x 1.5 s
+    for motor in range(1, 7):
+        own = slow["motor"] == motor
+        first = slow["time_s"][own].min()
+        ready = slow["slow_ready"][own]
+        assert ready.any() and not ready[slow["time_s"][own] < first + 6.0].any()
+    # the other motors: announced as without it, and read NORMAL on all but a few samples (the torque's
+    # slow look names one now and then, within its designed tail)
+    others = slow["motor"] != flight.motor
+    np.testing.assert_array_equal(slow["announced"][others], plain["announced"][others])
+    judged_others = others & slow["steady"].astype(bool)
+    assert (slow["state"][judged_others] != MotorState.NORMAL).mean() < 0.01
+    after = (slow["motor"] == flight.motor) & (slow["time_s"] > flight.onset_s) & slow["steady"].astype(bool)
+    accuracy = [(r["state"][after] == MotorState.F4_1).mean() for r in (plain, slow)]
+    assert accuracy[1] > accuracy[0] + 0.05, accuracy
+    changed = (slow["state"] != plain["state"]) & ~others
+    assert (slow["time_s"][changed] > flight.onset_s).all()
+    # a vehicle file from before (no slow noise): the slow look names nothing
+    old = dataclasses.replace(
+        vehicle,
+        noise={
+            m: {k: v for k, v in values.items() if not k.startswith("slow_")}
+            for m, values in vehicle.noise.items()
+        },
+    )
+    np.testing.assert_array_equal(
+        diagnose_flight(flight, folder, old, shipped)["state"],
+        diagnose_flight(flight, folder, old, off)["state"],
+    )
+    # the shipped profile whole (the slow look and the hold), streamed as the live agent streams
+    whole = load_profile("flight_vehicle")
+    _streams_as_replay(flight, tmp_path, vehicle, whole, diagnose_flight(flight, folder, vehicle, whole))
+
+
+def test_the_torques_slow_look_names_and_announces_friction_in_gusty_air(tmp_path):
+    """The torque against its siblings averaged as long as the slow look averages the deviations
+    (rules/equations.py, "The slow look"), judged against its own measured noise, with its evidence in
+    the sequential test (detection.py, "The slow look's evidence"): friction in gusty air, which the fast
+    look reads NORMAL on nearly every sample, is named on most and announced; no other motor is announced;
+    the live agent's batches give replay's states and announcements."""
+    import dataclasses
+
+    from mav_motor_health.config import load_profile
+    from mav_motor_health.diagnosis.states import MotorState
+
+    _, _, vehicle = identify_world(KNOWN, tmp_path, identification_s=80.0)
+    assert all(vehicle.noise[m]["slow_torque_nm"] > 0 for m in range(1, 7))
+    flight = world_flights(KNOWN, duration_s=20.0, healthy_flights=0, levels=("gusty",), faults=("F1.1",))[0]
+    shipped = load_profile("flight_vehicle")
+    off = dataclasses.replace(shipped, slow_band_fraction=0.0)
+    folder = tmp_path / "flights"
+    folder.mkdir()
+    slow = diagnose_flight(flight, folder, vehicle, shipped)
+    plain = diagnose_flight(flight, folder, vehicle, off)
+    after = (slow["motor"] == flight.motor) & (slow["time_s"] > flight.onset_s) & slow["steady"].astype(bool)
+    named = [(r["state"][after] == MotorState.F1_1).mean() for r in (plain, slow)]
+    announced = [(r["announced"][after] == MotorState.F1_1).mean() for r in (plain, slow)]
+    assert named[0] < 0.1 and named[1] > named[0] + 0.5, named
+    assert announced[0] == 0.0 and announced[1] > 0.3, announced
+    others = slow["motor"] != flight.motor
+    assert (slow["announced"][others] == MotorState.NORMAL).all()
+    _streams_as_replay(flight, tmp_path, vehicle, shipped, slow)

@@ -88,9 +88,57 @@ def test_the_measured_noise_recovers_a_known_spread_and_its_growth_with_activity
     assert measure_band_noise(diagnosed_table(np.random.default_rng(1), {1: 50, 2: 50})) == {}
 
 
+def test_the_slow_looks_own_noise_is_measured_where_the_rule_had_one() -> None:
+    """noise.py, "The slow look's own noise": the slow averages' spread around their own median, on the
+    samples the slow look could judge (``slow_ready``), for speed, current and the torque against its
+    siblings; none without the columns."""
+    rng = np.random.default_rng(23)
+    table = diagnosed_table(rng, {1: 6000, 2: 6000})
+    n = len(table)
+    dw = np.asarray(table["omega_judged_rad_s"]) - np.asarray(table["omega_model_rad_s"])
+    di = np.asarray(table["current_judged_a"]) - np.asarray(table["current_model_a"])
+    ready = rng.uniform(size=n) < 0.7
+    # the slow averages: half the fast spread, off by an offset of their own; wild where not ready
+    slow_w = np.where(ready, 0.5 * dw + 2.0, 1e4)
+    slow_i = np.where(ready, 0.5 * di - 0.1, -1e4)
+    with_slow = TelemetryTable(
+        {
+            **{name: table[name] for name in table.names},
+            "omega_slow_judged_rad_s": np.asarray(table["omega_model_rad_s"]) + slow_w,
+            "current_slow_judged_a": np.asarray(table["current_model_a"]) + slow_i,
+            "slow_ready": ready,
+            # the torque against its siblings averaged as long: a spread of 1 mN·m, known where ready
+            "torque_slow_nm": np.where(ready, rng.normal(0.0, 1e-3, n), np.nan),
+        }
+    )
+    measured = measure_band_noise(with_slow, min_command=0.2)
+    for motor in (1, 2):
+        speed, current = measured[motor].slow_speed, measured[motor].slow_current
+        assert speed is not None and current is not None
+        assert speed.offset == pytest.approx(2.0, abs=0.3) and current.offset == pytest.approx(-0.1, abs=0.02)
+        assert speed.per_activity == pytest.approx(10.0, rel=0.2)
+        assert current.per_activity == pytest.approx(0.5, rel=0.2)
+        # σ₀ holds the offset in quadrature, as the fast look's does
+        assert speed.sigma == pytest.approx(np.hypot(2.5, 2.0), rel=0.3)
+        torque = measured[motor].slow_torque
+        assert torque is not None and np.hypot(torque.sigma, torque.per_activity * 0.5) == pytest.approx(
+            1e-3, rel=0.2
+        )
+    assert measure_band_noise(table, min_command=0.2)[1].slow_speed is None
+
+
 def test_a_vehicle_file_carries_the_band_noise_and_reads_it_back(tmp_path: Path) -> None:
     noise = {
-        1: BandNoise(4.2, 0.31, 12.5, 0.8, 900, after_step=(2.5, 1.25, 1.0, 1.0)),
+        1: BandNoise(
+            4.2,
+            0.31,
+            12.5,
+            0.8,
+            900,
+            after_step=(2.5, 1.25, 1.0, 1.0),
+            slow_speed=EquationNoise(1.9, 5.0, 0.0, -0.4),
+            slow_current=EquationNoise(0.12, 0.3, 0.01, 0.05),
+        ),
         2: BandNoise(3.9, float("nan"), 10.0, 0.0, 850),
     }
     vehicle = VehicleParams(

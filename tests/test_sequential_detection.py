@@ -22,6 +22,7 @@ from mav_motor_health.diagnosis.detection import (
     named_evidence,
     report_credit,
     sequential_alarms,
+    with_slow_evidence,
 )
 from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.errors import ConfigError
@@ -430,3 +431,21 @@ def test_the_hold_is_the_reference_in_the_shipped_profile_and_written_back(tmp_p
     path = tmp_path / "held.toml"
     path.write_text(dump_profile(shipped), encoding="utf-8")
     assert load_profile(path) == shipped
+
+
+def test_the_slow_looks_evidence_counts_for_the_fewer_observations_it_gives() -> None:
+    """``with_slow_evidence`` (detection.py, "The slow look's evidence"): where the slow look named a
+    sample, its direction's evidence is the larger of the fast one and k + (y_slow − k)/slow_factor; other
+    directions, samples it did not name and a profile without a slow look keep theirs."""
+    f41, f11 = DIRECTIONS.index(MotorState.F4_1), DIRECTIONS.index(MotorState.F1_1)
+    n = 4
+    evidence = np.zeros((len(DIRECTIONS), n))
+    evidence[f41] = [1.0, 2.5, 4.0, 1.0]
+    evidence[f11] = [0.5, 0.5, 0.5, 0.5]
+    state = np.array([MotorState.F4_1, MotorState.F4_1, MotorState.F4_1, MotorState.NORMAL], dtype=np.int8)
+    slow = np.array([10.5, np.nan, 6.5, 10.5])  # the last: not named by the slow look (state NORMAL)
+    out = with_slow_evidence(evidence, state, slow, 2.5, 4.0)
+    np.testing.assert_allclose(out[f41], [4.5, 2.5, 4.0, 1.0])  # 2.5 + 8/4; none; the fast 4 > 3.5; none
+    np.testing.assert_array_equal(out[f11], evidence[f11])
+    np.testing.assert_array_equal(with_slow_evidence(evidence, state, None, 2.5, 4.0), evidence)
+    np.testing.assert_array_equal(with_slow_evidence(evidence, state, slow, 2.5, 0.0), evidence)

@@ -71,6 +71,15 @@ only a later rule name it, seconds later (docs/flight.md, "A cap on each sample'
 Below the cap nothing changes, and the design's false-alarm rate under its own noise model can only
 fall.
 
+**The slow look's evidence.** Where the slow look (the deviations, or the torque, averaged ``slow_factor``
+times longer, against their own measured noise: :mod:`.rules.tree`, :mod:`.rules.equations`) named a
+sample, its direction also gains from the slow departure ``y_s`` (in σ of the bands, as the fast one
+counts): the larger of the fast gain and ``(y_s − k)/slow_factor``, since an average ``slow_factor``
+times longer gives that many times fewer independent observations in the same time
+(:func:`with_slow_evidence`). A small lasting fault whose every fast departure lies below ``k`` is then
+announced, at the pace its slow departure allows; under no fault the slow look names a sample as rarely
+as the fast one does (its bands are its own noise's), and the capped directions' cap still holds.
+
 **Once announced.** The tree reads each sample against bands of ``noise_bands`` σ, so that a healthy motor
 reads NORMAL on all but a few samples in a million; a fault that departs by about as much (an open
 transistor in busier air than identification's, 4 to 5 σ) reads NORMAL on half its samples, and the
@@ -110,12 +119,14 @@ __all__ = [
     "design_threshold",
     "direction_evidence",
     "equation_evidence",
+    "evidence_toward",
     "held_states",
     "named_evidence",
     "report_credit",
     "report_credits",
     "sequential_alarms",
     "sequential_alarms_rows",
+    "with_slow_evidence",
 ]
 
 #: the directions tested, in the order of the evidence rows (:func:`direction_evidence`)
@@ -226,6 +237,13 @@ def _direction_codes(ndim: int) -> NDArray[np.int64]:
     return np.array([int(d) for d in DIRECTIONS]).reshape((-1,) + (1,) * ndim)
 
 
+def evidence_toward(evidence: NDArray[np.float64], states: NDArray[np.integer]) -> NDArray[np.float64]:
+    """Each sample's evidence (directions first) in the direction of its state in ``states`` (a named
+    state, or an announced one); 0 where that is not one of :data:`DIRECTIONS`."""
+    toward = np.asarray(states)[None] == _direction_codes(np.ndim(states))
+    return np.asarray(np.max(np.where(toward, evidence, 0.0), axis=0))
+
+
 def named_evidence(
     evidence: NDArray[np.float64], state: NDArray[np.integer], reference_sigmas: float
 ) -> NDArray[np.float64]:
@@ -234,6 +252,24 @@ def named_evidence(
     "Named by the tree"): no sample the tree calls something else adds to a direction's sum."""
     named = np.asarray(state)[None] == _direction_codes(np.ndim(state))
     return np.where(named, evidence, np.minimum(evidence, reference_sigmas))
+
+
+def with_slow_evidence(
+    evidence: NDArray[np.float64],
+    state: NDArray[np.integer],
+    slow_evidence: NDArray[np.float64] | None,
+    reference_sigmas: float,
+    slow_factor: float,
+) -> NDArray[np.float64]:
+    """Each direction's evidence with the slow look's where it named the sample (module doc, "The slow
+    look's evidence"): the larger of the fast look's and ``k + (y_slow − k)/slow_factor``, the slow
+    departure's gain over the reference counted for the fewer independent observations a longer average
+    gives in the same time."""
+    if slow_evidence is None or not slow_factor > 0:
+        return evidence
+    lifted = reference_sigmas + (np.asarray(slow_evidence) - reference_sigmas) / slow_factor
+    named = (np.asarray(state)[None] == _direction_codes(np.ndim(state))) & np.isfinite(lifted)[None]
+    return np.where(named, np.maximum(evidence, np.where(np.isfinite(lifted), lifted, 0.0)[None]), evidence)
 
 
 def held_states(
@@ -247,9 +283,7 @@ def held_states(
     announced at it (``evidence``: each of :data:`DIRECTIONS`' first, as the test read it; module doc,
     "Once announced"): those samples read as the announced fault. Returns them, and each sample's
     departure in the announced direction [σ] (0 where none is announced)."""
-    toward = np.max(
-        np.where(np.asarray(alarms)[None] == _direction_codes(np.ndim(alarms)), evidence, 0.0), axis=0
-    )
+    toward = evidence_toward(evidence, alarms)
     held = (toward >= hold_sigmas) & judged & (np.asarray(state) == MotorState.NORMAL)
     return held, toward
 

@@ -83,6 +83,21 @@ the sample had a reference): the ripple and the model's error away from the flig
 common to all motors and leave it (:mod:`.rules.equations`, "An input current's ripple, and the
 siblings").
 
+**The slow look's own noise.** A small lasting fault (an open transistor in moderate air) departs by
+about the bands' width, and reads NORMAL on half its samples; averaged longer, the healthy deviations
+narrow and the fault's departure stays. The balance rule's slow look (``slow_factor``: the deviations
+low-passed that many times longer) is judged against its own spread, measured here like the deviations'
+on the samples it could judge (``slow_ready``): σ(a, e) of the slow averages of speed and current around
+each motor's own median, that median added to the quiet σ in quadrature (``slow_speed_rad_s``,
+``..._per_v``, ``..._per_pairing``, ``slow_speed_offset_rad_s``; ``slow_current_a`` alike; the torque
+against its siblings averaged as long, ``slow_torque_nm`` ..., :mod:`.rules.equations`). No share of
+the bands is tuned: the slow look's bands hold as many of its σ as the fast look's hold of theirs
+(:class:`..rules.tree.SlowLook`). Beyond the conditions the noise was measured in, the slow σ grows at
+least as the fast σ grows from their limits: a calm flight may measure the slow average's noise flat in
+the activity (its slope fitted as 0) where the fast one's grows, and on held-out world 1019 in gusty air,
+nine times the identified activity, that flat σ named healthy motors' torque F1.1 and F3.1 on up to a
+tenth of their samples.
+
 A profile then sets ``noise_bands = n``: the bands are n·σ(a) of each motor, a dimensionless number that
 is the same for every vehicle. A vehicle file without the noise cannot be diagnosed with such a profile;
 :func:`require_noise` says which key is missing and how to get it.
@@ -147,6 +162,18 @@ NOISE_KEYS = {
     "voltage_residual_v_per_v": "V per V of input activity",
     "voltage_residual_v_per_pairing": "V per rad/s of pairing error",
     "voltage_residual_offset_v": "V",
+    "slow_speed_rad_s": "rad/s",
+    "slow_speed_rad_s_per_v": "rad/s per V of input activity",
+    "slow_speed_per_pairing": "rad/s per rad/s of pairing error",
+    "slow_speed_offset_rad_s": "rad/s",
+    "slow_current_a": "A",
+    "slow_current_a_per_v": "A per V of input activity",
+    "slow_current_a_per_pairing": "A per rad/s of pairing error",
+    "slow_current_offset_a": "A",
+    "slow_torque_nm": "N·m",
+    "slow_torque_nm_per_v": "N·m per V of input activity",
+    "slow_torque_nm_per_pairing": "N·m per rad/s of pairing error",
+    "slow_torque_offset_nm": "N·m",
 }
 #: the keys of each equation's noise (module doc, "Each equation's own noise"), in the order of
 #: :class:`EquationNoise`'s fields
@@ -170,6 +197,24 @@ EQUATION_KEYS = {
         "voltage_residual_v_per_pairing",
         "voltage_residual_offset_v",
     ),
+    "slow_speed": (
+        "slow_speed_rad_s",
+        "slow_speed_rad_s_per_v",
+        "slow_speed_per_pairing",
+        "slow_speed_offset_rad_s",
+    ),
+    "slow_current": (
+        "slow_current_a",
+        "slow_current_a_per_v",
+        "slow_current_a_per_pairing",
+        "slow_current_offset_a",
+    ),
+    "slow_torque": (
+        "slow_torque_nm",
+        "slow_torque_nm_per_v",
+        "slow_torque_nm_per_pairing",
+        "slow_torque_offset_nm",
+    ),
 }
 #: the after-step keys in bin order
 AFTER_STEP_KEYS = tuple(f"after_step_{b + 1}" for b in range(AFTER_STEP_BINS))
@@ -180,6 +225,9 @@ SIGNED_NOISE_KEYS = (
     "torque_residual_offset_nm",
     "torque_vs_siblings_offset_nm",
     "voltage_residual_offset_v",
+    "slow_speed_offset_rad_s",
+    "slow_current_offset_a",
+    "slow_torque_offset_nm",
 )
 #: the identified speed range: these shares of the judged samples' model speeds lie inside it
 RANGE_SHARES = (0.01, 0.99)
@@ -361,6 +409,87 @@ class NoiseRows(_ConditionsMath):
     #: the torque noise each motor is judged with (:attr:`BandNoise.torque_judged`): σ₀, its growth with
     #: the activity and with the pairing, one row per motor (NaN: not judged in the torque)
     torque_table: NDArray[np.float64]
+    #: the slow look's noise (:attr:`BandNoise.slow_speed`, :attr:`BandNoise.slow_current`,
+    #: :attr:`BandNoise.slow_torque`): σ₀, its growth with the activity and with the pairing, and the
+    #: offset, of the speed, the current then the torque, one row per motor (NaN: not measured)
+    slow_table: NDArray[np.float64]
+
+    def slow_deviations(
+        self,
+        delta_omega_rad_s: NDArray[np.float64],
+        delta_current_a: NDArray[np.float64],
+        activity_v: ArrayLike,
+        pairing_error_rad_s: ArrayLike | None = None,
+        margin: float = 0.0,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The slow look's deviations of speed and current in units of each row's own slow σ (module doc,
+        "The slow look's own noise"), from its offset (NaN on the rows of motors whose slow noise was not
+        measured)."""
+        a, e = _conditions(activity_v, pairing_error_rad_s)
+        speed = _grown(self.speed_rad_s, self.speed_rad_s_per_v, self.speed_per_pairing, a, e)
+        current = _grown(self.current_a, self.current_a_per_v, self.current_a_per_pairing, a, e)
+        clamped = self._within_conditions(a, e, margin)
+        with np.errstate(divide="ignore", invalid="ignore"):  # no usable current: σ infinite
+            growth = (
+                speed / _grown(self.speed_rad_s, self.speed_rad_s_per_v, self.speed_per_pairing, *clamped),
+                current / _grown(self.current_a, self.current_a_per_v, self.current_a_per_pairing, *clamped),
+            )
+        return (
+            self._slow_z(delta_omega_rad_s, 0, a, e, clamped, growth[0]),
+            self._slow_z(delta_current_a, 4, a, e, clamped, growth[1]),
+        )
+
+    def slow_torque_z(
+        self,
+        torque_nm: NDArray[np.float64],
+        activity_v: ArrayLike,
+        pairing_error_rad_s: ArrayLike | None = None,
+        margin: float = 0.0,
+    ) -> NDArray[np.float64]:
+        """The slow average of the torque against its siblings in units of each row's own slow σ, from its
+        offset (NaN on the rows of motors whose slow torque noise was not measured)."""
+        a, e = _conditions(activity_v, pairing_error_rad_s)
+        clamped = self._within_conditions(a, e, margin)
+        sigma, per_activity, per_pairing = (self.torque_table[:, k : k + 1] for k in range(3))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            growth = _grown(sigma, per_activity, per_pairing, a, e) / _grown(
+                sigma, per_activity, per_pairing, *clamped
+            )
+        return self._slow_z(torque_nm, 8, a, e, clamped, growth)
+
+    def _within_conditions(
+        self, a: NDArray[np.float64], e: NDArray[np.float64] | None, margin: float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """The conditions held at the busiest activity and loosest pairing the noise was measured up to
+        (widened by ``margin``; not held where a limit is not known)."""
+
+        def held(x: NDArray[np.float64], high: Any) -> NDArray[np.float64]:
+            limit = (1.0 + margin) * np.asarray(high, dtype=float)
+            return np.where(np.isfinite(limit), np.minimum(x, limit), x)
+
+        return held(a, self.activity_high_v), None if e is None else held(e, self.pairing_error_high_rad_s)
+
+    def _slow_z(
+        self,
+        values: NDArray[np.float64],
+        first: int,
+        a: NDArray[np.float64],
+        e: NDArray[np.float64] | None,
+        clamped: tuple[NDArray[np.float64], NDArray[np.float64] | None],
+        fast_growth: NDArray[np.float64],
+    ) -> NDArray[np.float64]:
+        """``values`` from the slow offset in units of the slow σ: σ(a, e) as measured, and beyond the
+        conditions it was measured in never growing less than the fast look's σ grows from there (a slow
+        noise measured flat in calm air is not flat in gusts: module doc, "The slow look's own noise")."""
+        sigma, per_activity, per_pairing, offset = (
+            self.slow_table[:, k : k + 1] for k in range(first, first + 4)
+        )
+        own = _grown(sigma, per_activity, per_pairing, a, e)
+        from_limit = _grown(sigma, per_activity, per_pairing, *clamped) * np.where(
+            np.isfinite(fast_growth), fast_growth, 1.0
+        )
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.asarray((values - offset) / np.fmax(own, from_limit))
 
     def torque_sigmas(
         self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
@@ -389,9 +518,24 @@ class NoiseRows(_ConditionsMath):
             [(j.sigma, j.per_activity, j.per_pairing) if j is not None else (np.nan,) * 3 for j in judged],
             dtype=float,
         ).reshape(-1, 3)
-        for column in (*columns.values(), table, torque):
+        slow = np.array(
+            [
+                [
+                    number
+                    for equation in (n.slow_speed, n.slow_current, n.slow_torque)
+                    for number in (
+                        (equation.sigma, equation.per_activity, equation.per_pairing, equation.offset)
+                        if equation is not None
+                        else (np.nan,) * 4
+                    )
+                ]
+                for n in noise
+            ],
+            dtype=float,
+        ).reshape(-1, 12)
+        for column in (*columns.values(), table, torque, slow):
             column.flags.writeable = False
-        rows = cls(**columns, after_step_table=table, torque_table=torque)
+        rows = cls(**columns, after_step_table=table, torque_table=torque, slow_table=slow)
         if len(_ROWS_MADE) >= _ROWS_HELD:
             _ROWS_MADE.clear()
         # the noise itself is held too: while it is, no other object can take its id, so the same ids are
@@ -463,6 +607,13 @@ class BandNoise(_ConditionsMath):
     #: the torque balance minus the median of the other motors' (:mod:`.siblings`): its healthy spread,
     #: which the torque is judged against where measured; None: not measured (a file from before)
     torque_vs_siblings: EquationNoise | None = None
+    #: the deviations of speed and current averaged longer (the balance rule's slow look, ``slow_factor``):
+    #: their healthy spread around their offsets, which the slow look judges against (module doc, "The slow
+    #: look's own noise"); None: not measured (a file from before, or a rule without a slow look)
+    slow_speed: EquationNoise | None = None
+    slow_current: EquationNoise | None = None
+    #: the torque against its siblings averaged as long (rules/equations.py): its healthy spread
+    slow_torque: EquationNoise | None = None
 
     @classmethod
     def unbounded(cls, through_duty: bool = False) -> BandNoise:
@@ -556,6 +707,9 @@ class BandNoise(_ConditionsMath):
             torque=_equation_of(values, EQUATION_KEYS["torque"]),
             voltage=_equation_of(values, EQUATION_KEYS["voltage"]),
             torque_vs_siblings=_equation_of(values, EQUATION_KEYS["torque_vs_siblings"]),
+            slow_speed=_equation_of(values, EQUATION_KEYS["slow_speed"]),
+            slow_current=_equation_of(values, EQUATION_KEYS["slow_current"]),
+            slow_torque=_equation_of(values, EQUATION_KEYS["slow_torque"]),
         )
 
 
@@ -687,6 +841,17 @@ def measure_band_noise(
     current_flags_ok = (column("sensor_flags", np.int64) & CURRENT_UNTRUSTED) == 0
     current_ok = judged & np.isfinite(di) & current_flags_ok
     motors = column("motor", np.int64)
+    # the slow look's longer averages, where the rule had one and it could be judged (module doc, "The
+    # slow look's own noise"): measured on the samples it reads, around each motor's own median
+    slow_columns = ("omega_slow_judged_rad_s", "current_slow_judged_a", "slow_ready")
+    slow: dict[str, NDArray[np.float64]] = {}
+    slow_ready = np.zeros(steady.shape, dtype=bool)
+    if all(name in d.names for d in tables for name in slow_columns):
+        slow_ready = column("slow_ready", bool)
+        slow["slow_speed"] = column("omega_slow_judged_rad_s") - omega_model
+        slow["slow_current"] = column("current_slow_judged_a") - column("current_model_a")
+        if all("torque_slow_nm" in d.names for d in tables):
+            slow["slow_torque"] = column("torque_slow_nm")
 
     def noise_of(speed_rows: NDArray[np.bool_], current_rows: NDArray[np.bool_]) -> BandNoise:
         e_speed = None if pairing is None else pairing[speed_rows]
@@ -699,6 +864,9 @@ def measure_band_noise(
             name: _equation_noise(values, current_rows, activity, pairing)
             for name, values in equations.items()
         }
+        for name, values in slow.items():
+            rows = (speed_rows if name == "slow_speed" else current_rows) & slow_ready
+            own_equations[name] = _equation_noise(values, rows, activity, pairing)
         torque = own_equations.get("torque")
         if input_current and torque is not None:
             own_equations["torque"] = replace(torque, through_duty=True)
@@ -724,6 +892,9 @@ def measure_band_noise(
             torque=own_equations.get("torque"),
             voltage=own_equations.get("voltage"),
             torque_vs_siblings=own_equations.get("torque_vs_siblings"),
+            slow_speed=own_equations.get("slow_speed"),
+            slow_current=own_equations.get("slow_current"),
+            slow_torque=own_equations.get("slow_torque"),
         )
 
     if np.count_nonzero(judged) < MIN_MOTOR_SAMPLES:

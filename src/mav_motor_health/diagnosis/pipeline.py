@@ -508,6 +508,7 @@ def _result_columns(frame: Frame) -> dict[str, NDArray]:
         "torque_residual_nm": nan_unless(frame.torque_residual_nm),
         "torque_siblings_nm": nan_unless(frame.torque_siblings_nm),
         "voltage_residual_v": nan_unless(frame.voltage_residual_v),
+        "torque_slow_nm": nan_unless(frame.torque_slow_nm),
     }
 
 
@@ -538,6 +539,7 @@ _RESULT_COLUMNS = (
     "detection_level",
     "since_step_s",
     *RESIDUAL_COLUMNS,
+    "torque_slow_nm",
 )
 
 
@@ -628,6 +630,7 @@ def diagnose(
         "torque_residual_nm": np.full(n, np.nan),
         "torque_siblings_nm": np.full(n, np.nan),
         "voltage_residual_v": np.full(n, np.nan),
+        "torque_slow_nm": np.full(n, np.nan),
     }
     motors = ordered["motor"]
     # each sample's pairing with its command (a log's column, telemetry/assemble.py); a table without
@@ -755,6 +758,7 @@ def diagnose(
         torque_residual_nm=out["torque_residual_nm"],
         torque_siblings_nm=out["torque_siblings_nm"],
         voltage_residual_v=out["voltage_residual_v"],
+        torque_slow_nm=out["torque_slow_nm"],
         vehicle_fit=vehicle_fit,
     )
     for name in ordered.names:

@@ -113,6 +113,8 @@ class ThresholdProfile:
 
     ``slow_band_fraction`` (0 < f ≤ 1, or 0): the share of the bands that the slow look of the balance
     rule (``steady.slow_factor``) judges its longer averages against; set by tuning. 0: no slow look.
+    With ``noise_bands`` the slow look's bands are its own measured noise times as many σ as the fast
+    look's (rules/tree.py), and this share narrows them further (``flight_vehicle``: 1, none).
 
     ``activity_band`` rows widen the bands with the input's activity (balance rule): ``[activity_v,
     speed_widening_rad_s, current_widening_a]`` widens the current band alike on both sides; a fourth
@@ -311,7 +313,7 @@ class ThresholdProfile:
         the profile has one, persistence. Made once per profile (frozen)."""
         from .rules.announce import Persistence, Sequential
         from .rules.bands import Bands, LiveNoise, SiblingBands
-        from .rules.equations import Equations
+        from .rules.equations import Equations, TorqueSlowLook
         from .rules.judged import Judged
         from .rules.offsets import HealthyOffsets
         from .rules.pairing import PairingGuard, PairingLimits
@@ -328,6 +330,7 @@ class ThresholdProfile:
             Tree(self),
             *([Equations(self)] if self.equation_bands > 0 else []),
             SlowLook(self.slow_band_fraction, self.joint_band_sum),
+            *([TorqueSlowLook(self)] if self.equation_bands > 0 and self.slow_band_fraction > 0 else []),
             Judged(self),
             *([Sequential(self)] if self.detection.on else []),
             Persistence(self),

@@ -17,6 +17,7 @@ from ..detection import (
     held_states,
     named_evidence,
     sequential_alarms_rows,
+    with_slow_evidence,
 )
 from ..persistence import PersistenceCarry, announce
 from ..states import MotorState
@@ -75,6 +76,14 @@ class Sequential(Rule):
         # reference (no gain, and no more loss than the sample's own departure gives)
         read = evidence
         evidence = named_evidence(evidence, frame.state, profile.detection.reference_sigmas)
+        # where the slow look named the sample, its own departure too, for the fewer observations it gives
+        evidence = with_slow_evidence(
+            evidence,
+            frame.state,
+            frame.slow_evidence,
+            profile.detection.reference_sigmas,
+            float(getattr(profile.steady, "slow_factor", 0.0)),
+        )
         # judged: the steady samples the tree named a motor state on (not a stall, a bad sensor, no data)
         judged = frame.steady & ~one_of(frame.state, _NOT_DIRECTIONS)
         alarms, level, new = sequential_alarms_rows(

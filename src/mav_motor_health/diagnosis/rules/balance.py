@@ -10,8 +10,9 @@ a sample is judged all the same where the vehicle's noise says how much wider th
 ``activity_band``) and, with ``activity_ref_v`` > 0, lengthens the low-pass to
 ``residual_tau_s·activity/activity_ref_v`` (at most ``residual_tau_max_s``). ``slow_factor`` > 0 (≥ 1)
 adds a slow look: the deviations low-passed again with ``slow_factor`` times that time constant, judged
-``slow_factor`` × ``settle_s`` after a step, against the bands narrowed to the profile's
-``slow_band_fraction`` (:class:`..slow_look.SlowAveragesRule`).
+``slow_factor`` × ``settle_s`` after a step, in calm air, against the bands narrowed to the profile's
+``slow_band_fraction`` (:class:`..tree.SlowLook`); with bands from the vehicle's noise, judged wherever
+the fast look is, against its own measured noise (:mod:`..noise`, "The slow look's own noise").
 
 ``bus_ref_v`` > 0: ``step_v`` and ``activity_ref_v`` are volts at this bus voltage and scale with the
 vehicle's (a step of 0.8 V at 11.1 V is one of 2.4 V at 33.3 V: the same command change); 0: volts as
@@ -57,6 +58,8 @@ class BalanceRuleCarry:
     lowest_input_v: float = math.inf
     #: the model speed at the motor's last sample [rad/s] (``step_sigmas``; NaN: none yet)
     last_model_rad_s: float = math.nan
+    #: when the slow look's averages started (the motor's first sample) [s]; NaN: not yet
+    slow_since_s: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -209,6 +212,11 @@ class BalanceRule(CompareRule):
                 old if new is None else new for old, new in zip(last_model, last_of(omega_pred, counts))
             ]
         slow_on = self.slow_factor > 0
+        # with bands from the vehicle's noise the slow look is judged where the fast one is: its own noise
+        # was measured there, the waits after steps and the gusts included (noise.py); else it waits
+        # slow_factor times longer after each step, in calm air only, against bands narrowed by a share
+        own_noise = profile.noise_bands > 0
+        slow_waits = slow_on and not own_noise
         warm, settled, since_step = settling_rows(
             t,
             v,
@@ -220,9 +228,10 @@ class BalanceRule(CompareRule):
             # the activity's low-pass has to fill up first, and the deviations' (longer in gusts)
             start_settle_s=np.maximum(3.0 * self.activity_tau_s, 3.0 * bal.tau_s),
             restart=restart,
-            also_settle_s=self.slow_factor * self.settle_s if slow_on else None,
+            also_settle_s=self.slow_factor * self.settle_s if slow_waits else None,
         )
-        if slow_on:
+        slow_warm = None
+        if slow_waits:
             warm, slow_warm = warm[0], warm[1]
         steady = warm & np.isfinite(v) & np.isfinite(omega_in)
         since_step = np.where(np.isfinite(v) & np.isfinite(omega_in), since_step, np.nan)
@@ -234,6 +243,7 @@ class BalanceRule(CompareRule):
                 steady = steady | (np.isfinite(after) & (since_step < self.settle_s))
             frame.after_step_factor = after
         slow_carries = [c.slow_omega for c in carries] + [c.slow_current for c in carries]
+        since_start = np.array([c.slow_since_s for c in carries], dtype=float)
         if slow_on:
             # The slow look: the deviations averaged slow_factor times longer, judged as long after a step
             slow_both, slow_carries = first_order_responses(
@@ -243,12 +253,23 @@ class BalanceRule(CompareRule):
                 slow_carries,
                 counts * 2,
             )
-            # only where the low-pass is not already lengthened by the activity (calm air): in gusts the
-            # fast look averages long already, and a slower one would hold every gust's upset for seconds
-            calm = bal.tau_s <= self.residual_tau_s
-            frame.slow = SlowAverages(
-                slow_both[:rows], slow_both[rows:], slow_warm & steady & ~stalled_like & calm
-            )
+            if slow_warm is None:
+                # judged where the fast look is, once the slow averages have filled as long as the fast
+                # ones must at the start (slow_factor times): a slow average of a few samples is not slow,
+                # and read in the slow look's narrower σ its start-up would look like a fault
+                started = np.array([c.slow_since_s for c in carries], dtype=float)
+                started = np.where(np.isfinite(started), started, t[:, 0])
+                since_start[:] = started
+                filled = (t - started[:, None]) >= self.slow_factor * np.maximum(
+                    3.0 * self.activity_tau_s, 3.0 * bal.tau_s
+                )
+                ready = steady & ~stalled_like & filled
+            else:
+                # only where the low-pass is not already lengthened by the activity (calm air): in gusts
+                # the fast look averages long already, and a slower one would hold every gust's upset
+                # for seconds
+                ready = slow_warm & steady & ~stalled_like & (bal.tau_s <= self.residual_tau_s)
+            frame.slow = SlowAverages(slow_both[:rows], slow_both[rows:], ready)
         frame.omega_model_rad_s, frame.current_model_a = omega_pred, current_pred
         frame.omega_judged_rad_s, frame.current_judged_a = omega_seen, current_seen
         frame.steady = steady
@@ -273,6 +294,7 @@ class BalanceRule(CompareRule):
                 slow_carries[rows + r],
                 lowest[r],
                 last_model[r],
+                float(since_start[r]) if counts[r] > 0 else carries[r].slow_since_s,
             )
             for r in range(rows)
         ]

@@ -99,12 +99,13 @@ def held_average(
     time_s: NDArray[np.float64],
     values: NDArray[np.float64],
     counted: NDArray[np.bool_],
-    tau_s: float,
+    tau_s: float | NDArray[np.float64],
     carry_t: NDArray[np.float64],
     carry_y: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], list[float], list[float]]:
     """An exponential average of each row's counted values over time (time constant ``tau_s``), held
-    between them: at a counted sample ``y ← a·y + (1 − a)·x`` with ``a = exp(−Δt/τ)``, Δt the time since
+    between them: at a counted sample ``y ← a·y + (1 − a)·x`` with ``a = exp(−Δt/τ)`` (τ one number, or
+    each sample's), Δt the time since
     the row's previous counted sample (the carried one's at the start), the first counted sample ever
     starting it at its value; elsewhere y holds (NaN before the first). Only counted samples move it or
     its clock, so a split of the rows into calls gives the same values (to rounding). Returns the

@@ -158,6 +158,12 @@ class Frame:
     #: the torque balance's departure from its motor's offset in σ of its noise where it is judged in it,
     #: NaN elsewhere (:mod:`.equations`); None: the faults are read from the speed and current deviations
     z_torque: NDArray[np.float64] | None = None
+    #: the judged torque (against its siblings) averaged as long as the slow look averages the deviations,
+    #: NaN where it was not judged (:mod:`.equations`, "The slow look"); None: no slow look
+    torque_slow_nm: NDArray[np.float64] | None = None
+    #: where the slow look named a sample (:mod:`.tree`, :mod:`.equations`), its departure in the named
+    #: direction in σ of the bands as the fast look's evidence counts it, NaN elsewhere; None: none named
+    slow_evidence: NDArray[np.float64] | None = None
     #: the sequential test's alarms and level, where a profile has one
     alarms: NDArray[np.int8] | None = None
     detection_level: NDArray[np.float64] | None = None
@@ -166,6 +172,12 @@ class Frame:
     @property
     def shape(self) -> tuple[int, int]:
         return self.time_s.shape
+
+    def note_slow_evidence(self, named: NDArray[np.bool_], evidence: NDArray[np.float64]) -> None:
+        """Record the slow look's evidence at the samples it named (:attr:`slow_evidence`)."""
+        if self.slow_evidence is None:
+            self.slow_evidence = np.full(self.shape, np.nan)
+        self.slow_evidence[named] = evidence[named]
 
     def noise_as_rows(self) -> NoiseRows:
         """``noise`` as rows (:class:`~..noise.NoiseRows`; made once for the same noise)."""

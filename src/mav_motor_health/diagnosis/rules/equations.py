@@ -37,6 +37,18 @@ reference (fewer than three siblings reporting, or those beyond their identified
 judged in ``r_T`` itself where the ESC reports its motor's own current, and by the deviations where
 ``torque_residual_through_duty = 1`` marks an input current.
 
+**The slow look.** With the profile's slow look (``steady.slow_factor``, ``slow_band_fraction``) the
+torque against its siblings is also averaged over the steady samples ``slow_factor`` times longer than
+the deviations' low-pass (``torque_slow_nm``), and identification measures that average's own noise like
+the torque's (``[noise.N] slow_torque_nm ...``, :mod:`..noise`). Where the torque read NORMAL and the
+slow look may judge, the average in its own σ beyond as many σ as the torque's band holds of the torque's
+σ at the sample (grown beyond the identified conditions alike) names friction (above) or a lighter
+propeller (below) (:class:`TorqueSlowLook`, after the deviations' slow look, which names an open
+transistor first: its lost current lowers the measured torque too): in gusty air, where the fast torque's band is several times the healthy spread, a
+friction of the paper's strength reads NORMAL on every sample and stands out of the slow average's
+noise by tens of σ. The sequential test counts its departure for the fewer observations a longer average
+gives (:mod:`..detection`, "The slow look's evidence").
+
 The sequential test (:mod:`.announce`) reads the same ``z_T`` for F1.1 and F3.1 where it is judged here
 (``frame.z_torque``, NaN elsewhere). What stays with the deviations: the stop speed and the stall's
 current, the speed-only states, F4.1 and UNKNOWN, and the lost-load check beyond the identified speeds
@@ -44,19 +56,22 @@ current, the speed-only states, F4.1 and UNKNOWN, and the lost-load check beyond
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..._arrays import one_of
 from ..states import MotorState
+from .bands import held_average
 from .base import Frame, Rule
 
 if TYPE_CHECKING:
     from ..profile import ThresholdProfile
 
-__all__ = ["Equations"]
+__all__ = ["Equations", "TorqueSlowLook"]
 
 #: the tree's states this rule reads again (those it names from the speed and the current together)
 REREAD = (MotorState.NORMAL, MotorState.F1_1, MotorState.F3_1, MotorState.F4_1, MotorState.UNKNOWN)
@@ -72,6 +87,9 @@ class Equations(Rule):
     name = "equations"
     reads_siblings = True
     profile: ThresholdProfile
+
+    def new_carry(self) -> Any:
+        return (math.nan, math.nan)  # the slow average's last counted time and value
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
         noise, band = frame.noise, frame.torque_band_nm
@@ -95,6 +113,10 @@ class Equations(Rule):
         judged = holds & frame.current_trusted() & np.isfinite(z)
         frame.z_torque = np.where(judged, z, np.nan)
         state, depth = frame.state, frame.depth
+        # averaged wherever a torque against the siblings is read, judged or not (identification measures
+        # the average's noise with no band at all)
+        available = holds & siblings & frame.current_trusted() & np.isfinite(torque)
+        carries = self._slow_average(frame, torque, available, carries)
         reread = judged & one_of(state, REREAD)
         if not reread.any():
             return carries
@@ -110,4 +132,76 @@ class Equations(Rule):
         new_depth = np.where(departs & ~deeper_f41, torque_depth, np.where(new == state, depth, 1.0))
         state[reread] = new[reread]
         depth[reread] = new_depth[reread]
+        return carries
+
+    def _slow_average(
+        self, frame: Frame, torque: NDArray[np.float64], available: NDArray[np.bool_], carries: list[Any]
+    ) -> list[Any]:
+        """``frame.torque_slow_nm``: the torque against its siblings, averaged over the steady
+        samples with ``slow_factor`` times the deviations' low-pass time (module doc, "The slow look");
+        each row's carry advanced. Nothing where the profile has no slow look."""
+        slow_factor = float(getattr(self.profile.steady, "slow_factor", 0.0))
+        if frame.slow is None or not slow_factor > 0 or frame.low_pass_s is None:
+            return carries
+        rows, width = frame.shape
+        counted = available & frame.steady & (np.arange(width)[None, :] < np.asarray(frame.counts)[:, None])
+        carried = np.array(carries, dtype=float).reshape(rows, 2)
+        low, last_t, last_y = held_average(
+            frame.time_s,
+            np.where(counted, torque, 0.0),
+            counted,
+            slow_factor * np.broadcast_to(frame.low_pass_s, frame.shape),
+            carried[:, 0],
+            carried[:, 1],
+        )
+        frame.torque_slow_nm = np.where(counted, low, np.nan)
+        return list(zip(last_t, last_y))
+
+
+@dataclass(frozen=True)
+class TorqueSlowLook(Rule):
+    """Where a sample still reads NORMAL after the slow look of the deviations (an open transistor is
+    theirs: it named it first), the torque's slow average (``torque_slow_nm``, written by
+    :class:`Equations`) against its own measured noise, in as many σ as the torque's band holds of the
+    torque's σ at the sample: beyond, friction (above, the slow speed average not above the model) or a
+    lighter propeller (below, not below it), with that depth and its slow evidence (module doc, "The slow
+    look")."""
+
+    name = "torque_slow_look"
+    profile: ThresholdProfile
+
+    def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
+        slow, averaged, band = frame.slow, frame.torque_slow_nm, frame.torque_band_nm
+        fraction = self.profile.slow_band_fraction
+        if slow is None or averaged is None or band is None or not fraction > 0 or frame.noise is None:
+            return carries
+        if frame.z_torque is None:
+            return carries
+        state = frame.state
+        judged = np.isfinite(frame.z_torque) & np.isfinite(averaged)
+        candidates = judged & slow.ready & (state == MotorState.NORMAL)
+        if not candidates.any():
+            return carries
+        rows = frame.noise_as_rows()
+        a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
+        e = frame.pairing_error_rad_s
+        z = rows.slow_torque_z(averaged, a, e, self.profile.range_margin)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            reach = fraction * band / rows.torque_sigmas(a, e)
+            slow_depth = np.abs(z) / reach
+        # the paper's directions in the slow averages too: friction turns the motor no faster than its
+        # model, a lighter propeller no slower (an open transistor's lost current lowers the torque read
+        # through the duty, and the motor slows: not a lighter propeller)
+        z_speed, _ = rows.slow_deviations(
+            slow.delta_omega_rad_s, slow.delta_current_a, a, e, self.profile.range_margin
+        )
+        with np.errstate(invalid="ignore"):
+            agrees = np.where(z > 0, z_speed <= 0, z_speed >= 0)
+        named = candidates & (slow_depth > 1.0) & agrees
+        if not named.any():
+            return carries
+        state[named] = np.where(z[named] > 0, MotorState.F1_1, MotorState.F3_1)
+        frame.depth[named] = slow_depth[named]
+        # in σ of the band, as the test counts the torque's own departure (z_torque)
+        frame.note_slow_evidence(named, slow_depth * self.profile.equation_bands)
         return carries

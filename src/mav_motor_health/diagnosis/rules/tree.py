@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...model.dynamics import last_of
+from ..detection import direction_evidence, evidence_toward
 from ..noise import MIN_MOTOR_SAMPLES
 from ..stall import stop_speeds
 from ..states import MotorState
@@ -144,7 +145,14 @@ def flight_typical(
 class SlowLook(Rule):
     """Where the tree sees nothing, a small lasting departure may still show in the comparison's longer
     averages (the balance rule's slow look): named where speed and current agree on a fault, against the
-    bands narrowed to ``fraction``; ``joint_band_sum`` as the tree's (0: 2)."""
+    bands narrowed to ``fraction``; ``joint_band_sum`` as the tree's (0: 2).
+
+    With bands from the vehicle's noise (``noise_bands``) the slow averages are read in units of their own
+    σ (:mod:`..noise`, "The slow look's own noise"), against as many of them as the fast look's bands hold
+    of its σ at the sample (grown beyond the identified conditions alike), times ``fraction`` (the shipped
+    profile: 1, no narrowing); a motor whose vehicle file has no slow noise is not read this way. Where the
+    torque balance judges friction and a lighter propeller (:mod:`.equations`), the slow look names only an
+    open transistor."""
 
     name = "slow_look"
     fraction: float
@@ -158,15 +166,60 @@ class SlowLook(Rule):
         candidates = slow.ready & (state == MotorState.NORMAL) & frame.current_trusted()
         if not np.any(candidates):
             return carries
-        slow_state, slow_depth = agreeing_departures(
-            slow.delta_omega_rad_s,
-            slow.delta_current_a,
-            self.fraction * np.asarray(frame.speed_band_rad_s, dtype=float),
-            self.fraction
-            * np.where(slow.delta_current_a < 0, frame.current_band_below_a, frame.current_band_a),
-            self.joint_band_sum or 2.0,
-        )
+        named_toward = None
+        if frame.noise is not None and frame.profile.noise_bands > 0:
+            # bands from the vehicle's noise: the slow averages in units of their own measured σ, against
+            # as many of them as the fast look's bands hold of its σ here (noise_bands, grown beyond the
+            # identified conditions as those are); a motor whose slow noise was not measured: none
+            rows = frame.noise_as_rows()
+            a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
+            z_speed, z_current = rows.slow_deviations(
+                slow.delta_omega_rad_s,
+                slow.delta_current_a,
+                a,
+                frame.pairing_error_rad_s,
+                frame.profile.range_margin,
+            )
+            if frame.sigma_speed_rad_s is not None and frame.sigma_current_a is not None:
+                sigma_speed, sigma_current = frame.sigma_speed_rad_s, frame.sigma_current_a
+            else:
+                sigma_speed, sigma_current = rows.sigmas(a, frame.pairing_error_rad_s)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                band_speed = np.asarray(frame.speed_band_rad_s, dtype=float) / sigma_speed
+                band_current = (
+                    np.where(z_current < 0, frame.current_band_below_a, frame.current_band_a) / sigma_current
+                )
+            slow_state, slow_depth = agreeing_departures(
+                z_speed,
+                z_current,
+                self.fraction * band_speed,
+                self.fraction * band_current,
+                self.joint_band_sum or 2.0,
+            )
+            if frame.z_torque is not None:
+                # friction and a lighter propeller are the torque balance's where it judges them
+                # (rules/equations.py): there the slow look names an open transistor only
+                torque = np.isfinite(frame.z_torque)
+                slow_state[torque & (slow_state != MotorState.F4_1)] = MotorState.NORMAL
+            # the departure in the named direction, in σ of the bands as the test counts the fast look's
+            n = frame.profile.noise_bands
+            with np.errstate(divide="ignore", invalid="ignore"):
+                toward = direction_evidence(
+                    n * z_speed / band_speed, n * z_current / band_current, frame.current_trusted(), n
+                )
+            named_toward = evidence_toward(toward, slow_state)
+        else:
+            slow_state, slow_depth = agreeing_departures(
+                slow.delta_omega_rad_s,
+                slow.delta_current_a,
+                self.fraction * np.asarray(frame.speed_band_rad_s, dtype=float),
+                self.fraction
+                * np.where(slow.delta_current_a < 0, frame.current_band_below_a, frame.current_band_a),
+                self.joint_band_sum or 2.0,
+            )
         use = candidates & (slow_state != MotorState.NORMAL)
         state[use] = slow_state[use]
         frame.depth[use] = slow_depth[use]
+        if named_toward is not None:
+            frame.note_slow_evidence(use, named_toward)
         return carries
