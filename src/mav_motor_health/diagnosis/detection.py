@@ -237,11 +237,15 @@ def _direction_codes(ndim: int) -> NDArray[np.int64]:
     return np.array([int(d) for d in DIRECTIONS]).reshape((-1,) + (1,) * ndim)
 
 
+def _is_direction(states: NDArray[np.integer]) -> NDArray[np.bool_]:
+    """Whether each sample's state is each of :data:`DIRECTIONS` (directions first)."""
+    return np.asarray(np.asarray(states)[None] == _direction_codes(np.ndim(states)))
+
+
 def evidence_toward(evidence: NDArray[np.float64], states: NDArray[np.integer]) -> NDArray[np.float64]:
     """Each sample's evidence (directions first) in the direction of its state in ``states`` (a named
     state, or an announced one); 0 where that is not one of :data:`DIRECTIONS`."""
-    toward = np.asarray(states)[None] == _direction_codes(np.ndim(states))
-    return np.asarray(np.max(np.where(toward, evidence, 0.0), axis=0))
+    return np.asarray(np.max(np.where(_is_direction(states), evidence, 0.0), axis=0))
 
 
 def named_evidence(
@@ -250,8 +254,7 @@ def named_evidence(
     """Each direction's evidence (directions first, then the samples' shape) where the sample's state is
     that direction's (the tree named it), and at most ``reference_sigmas`` elsewhere (module doc,
     "Named by the tree"): no sample the tree calls something else adds to a direction's sum."""
-    named = np.asarray(state)[None] == _direction_codes(np.ndim(state))
-    return np.where(named, evidence, np.minimum(evidence, reference_sigmas))
+    return np.where(_is_direction(state), evidence, np.minimum(evidence, reference_sigmas))
 
 
 def with_slow_evidence(
@@ -268,8 +271,8 @@ def with_slow_evidence(
     if slow_evidence is None or not slow_factor > 0:
         return evidence
     lifted = reference_sigmas + (np.asarray(slow_evidence) - reference_sigmas) / slow_factor
-    named = (np.asarray(state)[None] == _direction_codes(np.ndim(state))) & np.isfinite(lifted)[None]
-    return np.where(named, np.maximum(evidence, np.where(np.isfinite(lifted), lifted, 0.0)[None]), evidence)
+    # NaN (not named by the slow look) leaves the fast evidence
+    return np.where(_is_direction(state), np.fmax(evidence, lifted[None]), evidence)
 
 
 def held_states(

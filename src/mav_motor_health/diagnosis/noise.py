@@ -426,14 +426,11 @@ class NoiseRows(_ConditionsMath):
         "The slow look's own noise"), from its offset (NaN on the rows of motors whose slow noise was not
         measured)."""
         a, e = _conditions(activity_v, pairing_error_rad_s)
-        speed = _grown(self.speed_rad_s, self.speed_rad_s_per_v, self.speed_per_pairing, a, e)
-        current = _grown(self.current_a, self.current_a_per_v, self.current_a_per_pairing, a, e)
         clamped = self._within_conditions(a, e, margin)
+        speed, current = self.sigmas(a, e)
+        speed_there, current_there = self.sigmas(*clamped)
         with np.errstate(divide="ignore", invalid="ignore"):  # no usable current: σ infinite
-            growth = (
-                speed / _grown(self.speed_rad_s, self.speed_rad_s_per_v, self.speed_per_pairing, *clamped),
-                current / _grown(self.current_a, self.current_a_per_v, self.current_a_per_pairing, *clamped),
-            )
+            growth = speed / speed_there, current / current_there
         return (
             self._slow_z(delta_omega_rad_s, 0, a, e, clamped, growth[0]),
             self._slow_z(delta_current_a, 4, a, e, clamped, growth[1]),
@@ -450,11 +447,8 @@ class NoiseRows(_ConditionsMath):
         offset (NaN on the rows of motors whose slow torque noise was not measured)."""
         a, e = _conditions(activity_v, pairing_error_rad_s)
         clamped = self._within_conditions(a, e, margin)
-        sigma, per_activity, per_pairing = (self.torque_table[:, k : k + 1] for k in range(3))
         with np.errstate(divide="ignore", invalid="ignore"):
-            growth = _grown(sigma, per_activity, per_pairing, a, e) / _grown(
-                sigma, per_activity, per_pairing, *clamped
-            )
+            growth = self.torque_sigmas(a, e) / self.torque_sigmas(*clamped)
         return self._slow_z(torque_nm, 8, a, e, clamped, growth)
 
     def _within_conditions(

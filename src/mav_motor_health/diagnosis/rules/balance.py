@@ -217,6 +217,8 @@ class BalanceRule(CompareRule):
         # slow_factor times longer after each step, in calm air only, against bands narrowed by a share
         own_noise = profile.noise_bands > 0
         slow_waits = slow_on and not own_noise
+        # the activity's low-pass has to fill up first, and the deviations' (longer in gusts)
+        start_settle_s = np.maximum(3.0 * self.activity_tau_s, 3.0 * bal.tau_s)
         warm, settled, since_step = settling_rows(
             t,
             v,
@@ -225,8 +227,7 @@ class BalanceRule(CompareRule):
             step_v,
             [c.steady for c in carries],
             counts,
-            # the activity's low-pass has to fill up first, and the deviations' (longer in gusts)
-            start_settle_s=np.maximum(3.0 * self.activity_tau_s, 3.0 * bal.tau_s),
+            start_settle_s=start_settle_s,
             restart=restart,
             also_settle_s=self.slow_factor * self.settle_s if slow_waits else None,
         )
@@ -257,12 +258,8 @@ class BalanceRule(CompareRule):
                 # judged where the fast look is, once the slow averages have filled as long as the fast
                 # ones must at the start (slow_factor times): a slow average of a few samples is not slow,
                 # and read in the slow look's narrower σ its start-up would look like a fault
-                started = np.array([c.slow_since_s for c in carries], dtype=float)
-                started = np.where(np.isfinite(started), started, t[:, 0])
-                since_start[:] = started
-                filled = (t - started[:, None]) >= self.slow_factor * np.maximum(
-                    3.0 * self.activity_tau_s, 3.0 * bal.tau_s
-                )
+                since_start = np.where(np.isfinite(since_start), since_start, t[:, 0])
+                filled = (t - since_start[:, None]) >= self.slow_factor * start_settle_s
                 ready = steady & ~stalled_like & filled
             else:
                 # only where the low-pass is not already lengthened by the activity (calm air): in gusts

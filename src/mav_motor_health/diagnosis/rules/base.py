@@ -164,6 +164,9 @@ class Frame:
     #: where the slow look named a sample (:mod:`.tree`, :mod:`.equations`), its departure in the named
     #: direction in σ of the bands as the fast look's evidence counts it, NaN elsewhere; None: none named
     slow_evidence: NDArray[np.float64] | None = None
+    #: the slow averages of speed and current in σ of their own noise, read once per call
+    #: (:meth:`slow_deviation_z`)
+    slow_z: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
     #: the sequential test's alarms and level, where a profile has one
     alarms: NDArray[np.int8] | None = None
     detection_level: NDArray[np.float64] | None = None
@@ -172,6 +175,21 @@ class Frame:
     @property
     def shape(self) -> tuple[int, int]:
         return self.time_s.shape
+
+    def slow_deviation_z(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The slow look's averages of speed and current in units of each motor's own slow σ, from their
+        offsets (:meth:`~..noise.NoiseRows.slow_deviations`; the frame needs its slow averages and the
+        motors' noise), worked out once for the rules that read them (:mod:`.tree`, :mod:`.equations`)."""
+        if self.slow_z is None:
+            assert self.slow is not None
+            self.slow_z = self.noise_as_rows().slow_deviations(
+                self.slow.delta_omega_rad_s,
+                self.slow.delta_current_a,
+                np.zeros(self.shape) if self.activity_v is None else self.activity_v,
+                self.pairing_error_rad_s,
+                self.profile.range_margin,
+            )
+        return self.slow_z
 
     def note_slow_evidence(self, named: NDArray[np.bool_], evidence: NDArray[np.float64]) -> None:
         """Record the slow look's evidence at the samples it named (:attr:`slow_evidence`)."""

@@ -173,9 +173,9 @@ class TorqueSlowLook(Rule):
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
         slow, averaged, band = frame.slow, frame.torque_slow_nm, frame.torque_band_nm
         fraction = self.profile.slow_band_fraction
-        if slow is None or averaged is None or band is None or not fraction > 0 or frame.noise is None:
+        if slow is None or averaged is None or band is None or frame.z_torque is None or frame.noise is None:
             return carries
-        if frame.z_torque is None:
+        if not fraction > 0:
             return carries
         state = frame.state
         judged = np.isfinite(frame.z_torque) & np.isfinite(averaged)
@@ -192,9 +192,7 @@ class TorqueSlowLook(Rule):
         # the paper's directions in the slow averages too: friction turns the motor no faster than its
         # model, a lighter propeller no slower (an open transistor's lost current lowers the torque read
         # through the duty, and the motor slows: not a lighter propeller)
-        z_speed, _ = rows.slow_deviations(
-            slow.delta_omega_rad_s, slow.delta_current_a, a, e, self.profile.range_margin
-        )
+        z_speed, _ = frame.slow_deviation_z()
         with np.errstate(invalid="ignore"):
             agrees = np.where(z > 0, z_speed <= 0, z_speed >= 0)
         named = candidates & (slow_depth > 1.0) & agrees

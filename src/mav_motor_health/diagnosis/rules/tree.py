@@ -171,19 +171,12 @@ class SlowLook(Rule):
             # bands from the vehicle's noise: the slow averages in units of their own measured σ, against
             # as many of them as the fast look's bands hold of its σ here (noise_bands, grown beyond the
             # identified conditions as those are); a motor whose slow noise was not measured: none
-            rows = frame.noise_as_rows()
-            a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
-            z_speed, z_current = rows.slow_deviations(
-                slow.delta_omega_rad_s,
-                slow.delta_current_a,
-                a,
-                frame.pairing_error_rad_s,
-                frame.profile.range_margin,
-            )
+            z_speed, z_current = frame.slow_deviation_z()
             if frame.sigma_speed_rad_s is not None and frame.sigma_current_a is not None:
                 sigma_speed, sigma_current = frame.sigma_speed_rad_s, frame.sigma_current_a
             else:
-                sigma_speed, sigma_current = rows.sigmas(a, frame.pairing_error_rad_s)
+                a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
+                sigma_speed, sigma_current = frame.noise_as_rows().sigmas(a, frame.pairing_error_rad_s)
             with np.errstate(divide="ignore", invalid="ignore"):
                 band_speed = np.asarray(frame.speed_band_rad_s, dtype=float) / sigma_speed
                 band_current = (
