@@ -112,10 +112,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import nnls
 
 from .._arrays import nan_to_zero
 from ..errors import ConfigError
+from ..model.lsq import fit_linear
 from ..telemetry.table import TelemetryTable
 from .plausibility import CURRENT_UNTRUSTED
 
@@ -780,7 +780,8 @@ def _fit_growth(
     if a.size < 2 or (np.ptp(a) <= 0 and np.ptp(e) <= 0):
         return _tail_sigma(deviation), 0.0, 0.0
     design = np.column_stack([np.ones_like(a), a**2] + ([e**2] if paired else []))
-    coefficients, _ = nnls(design, s**2)
+    fit = fit_linear(design, s**2, ("quiet", "activity", "pairing")[: design.shape[1]])  # variances ≥ 0
+    coefficients = list(fit.values.values())
     s0 = math.sqrt(coefficients[0])
     if not s0 > 0:  # all of it grows with the activity: keep a floor at the quietest bin's
         s0 = float(np.min(s))

@@ -5,8 +5,8 @@ The forward solution eliminates the current between eq. 2 and eq. 7::
     f(ω) = C_p·ω^k + (B + k_e²/R)·ω + T_f − k_e·V/R = 0
 
 For ω ≥ 0 and k ≥ 1, f is increasing and convex, so it has one root when f(0) < 0 (the motor turns)
-and none otherwise (friction holds the motor: ω = 0). Newton's method started at an upper bound of the
-root descends on it monotonically; a bisection guard keeps it in the bracket for any k.
+and none otherwise (friction holds the motor: ω = 0); :func:`~.solve.turning_speed`, the project's one
+solver, finds it (the model with effects is solved by the same function).
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .params import MotorParams
+from .solve import turning_speed
 
 __all__ = [
     "SteadyState",
@@ -78,55 +79,8 @@ def steady_state(
     omega = np.zeros_like(v)
     omega[np.isnan(v)] = np.nan
     if np.any(turning):
-        d = drive[turning]
         if isinstance(linear, np.ndarray):
             linear = linear[turning]
-        hi = d / linear  # root of the linear part: an upper bound since C_p·ω^k ≥ 0
-        if Cp > 0:
-            hi = np.minimum(hi, (d / Cp) ** (1.0 / k))  # root of the power part: another upper bound
-        lo = np.zeros_like(hi)
-        w = _closed_form_start(Cp, linear, d, k, hi)
-        if Cp > 0 and k in (2, 3):
-            # The closed form is the root up to rounding: one Newton step polishes it.
-            f = Cp * w**k + linear * w - d
-            w = np.clip(w - f / (Cp * k * w ** (k - 1.0) + linear), 0.0, hi)
-            max_iter = 0
-        for _ in range(max_iter):
-            f = Cp * w**k + linear * w - d
-            # Keep the bracket [lo, hi] around the root, then take a Newton step inside it.
-            above = f > 0
-            hi = np.where(above, w, hi)
-            lo = np.where(above, lo, w)
-            fprime = Cp * k * np.power(w, k - 1.0, where=w > 0, out=np.zeros_like(w)) + linear
-            step = f / fprime
-            w_new = w - step
-            outside = (w_new < lo) | (w_new > hi)
-            w_new = np.where(outside, 0.5 * (lo + hi), w_new)
-            done = np.abs(w_new - w) <= tol_rad_s * np.maximum(1.0, w)
-            w = w_new
-            if np.all(done):
-                break
-        omega[turning] = w
+        omega[turning] = turning_speed(drive[turning], linear, Cp, k, tol_rad_s=tol_rad_s, max_iter=max_iter)
     current = np.where(turning, (v - ke * omega) / R, v / R)
     return SteadyState(omega.reshape(shape), current.reshape(shape))
-
-
-def _closed_form_start(
-    Cp: float, linear: float | FloatArray, d: FloatArray, k: float, hi: FloatArray
-) -> FloatArray:
-    """The root itself for k = 1, 2, 3 (closed forms), else the upper bound ``hi`` for Newton to descend from.
-
-    For k = 3, ``ω³ + pω − q = 0`` with p = linear/C_p > 0 has one real root,
-    ``ω = 2·sqrt(p/3)·sinh(asinh(1.5·q/p·sqrt(3/p))/3)``, free of the cancellation in Cardano's form.
-    Newton then only polishes (one or two steps).
-    """
-    if Cp == 0 or k == 1:
-        return d / (linear + Cp) if k == 1 else hi
-    if k == 2:
-        return 2.0 * d / (linear + np.sqrt(linear * linear + 4.0 * Cp * d))  # stable quadratic root
-    if k == 3:
-        p = linear / Cp
-        q = d / Cp
-        root: FloatArray = 2.0 * np.sqrt(p / 3.0) * np.sinh(np.arcsinh(1.5 * q / p * np.sqrt(3.0 / p)) / 3.0)
-        return np.minimum(root, hi)
-    return hi

@@ -35,7 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import lsq_linear, minimize_scalar
+from scipy.optimize import minimize_scalar
+
+from .lsq import fit_linear
 
 __all__ = [
     "DEFAULT_MIN_DUTY",
@@ -148,20 +150,12 @@ def fit_electrical_balance(
     terms: ElectricalTerms, c0: float, side: str
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """(k_e, R/g) ≥ 0 for one motor, their standard errors, and the residual in volts (per bin, divided
-    by the mean duty)."""
+    by the mean duty; NaN where the bin's duty says nothing)."""
     y, a, weight = terms.weighted_rows(c0, side)
-    scale = np.maximum(np.abs(a).max(axis=0), 1e-12)
-    sol = lsq_linear(a / scale, y, bounds=(0.0, np.inf), method="bvls")
-    coef = sol.x / scale
-    raw = y - a @ coef
-    resid = np.where(weight > 0, raw, np.nan)
-    dof = max(y.size - 2, 1)
-    try:
-        cov = np.linalg.inv(a.T @ a) * float(np.sum(raw**2)) / dof
-        stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        stderr = np.full(2, np.nan)
-    return coef, stderr, resid
+    fit = fit_linear(a, y, ("k_e", "R_ohm"), title=f"electrical balance ({side}-side current)")
+    coef = np.array(list(fit.values.values()))
+    resid = np.where(weight > 0, -fit.residual, np.nan)
+    return coef, np.array(list(fit.stderr.values())), resid
 
 
 def search_idle_offset(terms: Mapping[int, ElectricalTerms], side: str) -> tuple[float, float, float]:

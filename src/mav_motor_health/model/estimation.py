@@ -25,14 +25,12 @@ on the motor current (``s/d`` on the input side) against the motor voltage ``d·
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
 
 from ..errors import FitError
 from .equations import current_from_speed, steady_state, voltage_from_current_speed
@@ -44,12 +42,13 @@ from .esc import (
     fit_electrical_balance,
     search_idle_offset,
 )
+from .lsq import LeastSquaresFit, accuracy_pct, fit_least_squares
 from .params import PARAMETER_UNITS, MotorParams
 
 __all__ = [
-    "EquationFit",
     "EscFit",
     "FitResult",
+    "LeastSquaresFit",
     "OperatingPoints",
     "SpeedOnlyFit",
     "accuracy_pct",
@@ -68,17 +67,6 @@ INTEGER_EXPONENTS = (1, 2, 3, 4, 5)
 ESC_CURRENT_SIDES = ("input", "motor")
 #: units of the fitted values that are not motor parameters
 _OTHER_UNITS = {"idle_offset": "of the command range"}
-
-
-def accuracy_pct(measured: ArrayLike, modelled: ArrayLike) -> float:
-    """``100·(1 − Σ|m − y| / Σ|m|)``: the project's one definition of model accuracy (see module doc)."""
-    m = np.asarray(measured, dtype=float)
-    y = np.asarray(modelled, dtype=float)
-    ok = np.isfinite(m) & np.isfinite(y)
-    denominator = np.abs(m[ok]).sum()
-    if denominator == 0:
-        return float("nan")
-    return float(100.0 * (1.0 - np.abs(m[ok] - y[ok]).sum() / denominator))
 
 
 @dataclass(frozen=True)
@@ -124,24 +112,6 @@ def operating_points(
 
 
 @dataclass(frozen=True)
-class EquationFit:
-    """Result of fitting one equation: values, standard errors, covariance and goodness of fit."""
-
-    equation: str
-    values: dict[str, float]
-    stderr: dict[str, float]
-    covariance: FloatArray
-    rmse: float
-    r_squared: float
-    accuracy_pct: float
-    n_points: int
-    aic: float
-    bic: float
-    success: bool
-    message: str
-
-
-@dataclass(frozen=True)
 class EscFit:
     """The ESC map a bench fit found: the idle offset and the side the current was read on.
 
@@ -174,8 +144,8 @@ class FitResult:
     """
 
     params: MotorParams
-    electrical: EquationFit
-    mechanical: EquationFit
+    electrical: LeastSquaresFit
+    mechanical: LeastSquaresFit
     exponent_rmse_a: dict[float, float]
     forward_accuracy_pct: dict[str, float]
     points: OperatingPoints = field(repr=False)
@@ -236,19 +206,8 @@ class FitResult:
                 + f", {e.side_from}; electrical residual "
                 + ", ".join(f"{k} side {v:.3g} V" for k, v in e.residual_v.items())
             )
-        for fit in (self.electrical, self.mechanical):
-            lines.append(
-                f"  {fit.equation}: rmse {fit.rmse:.4g}, R² {fit.r_squared:.5f}, "
-                f"accuracy {fit.accuracy_pct:.2f} %, AIC {fit.aic:.1f}, BIC {fit.bic:.1f}"
-                + ("" if fit.success else f"  (NOT CONVERGED: {fit.message})")
-            )
-            for name, value in fit.values.items():
-                err = fit.stderr.get(name, float("nan"))
-                rel = abs(err / value) * 100 if value else float("inf")
-                lines.append(
-                    f"    {name:6s} = {value: .5g} +/- {err:.3g} ({rel:.2g} %)  "
-                    f"[{PARAMETER_UNITS.get(name) or _OTHER_UNITS[name]}]"
-                )
+        units = {**PARAMETER_UNITS, **_OTHER_UNITS}
+        lines.extend(fit.report(units) for fit in (self.electrical, self.mechanical))
         ks = ", ".join(
             f"k={k:g}: {v:.4g} A" + (f" (BIC {self.exponent_bic[k]:.1f})" if k in self.exponent_bic else "")
             for k, v in self.exponent_rmse_a.items()
@@ -262,63 +221,7 @@ class FitResult:
         return "\n".join(lines)
 
 
-def _levenberg_marquardt(
-    residual: Callable[[FloatArray], FloatArray],
-    x0: FloatArray,
-    scale: FloatArray,
-    names: list[str],
-    target: FloatArray,
-    equation: str,
-    lower: FloatArray | None = None,
-    upper: FloatArray | None = None,
-) -> EquationFit:
-    """Minimise eq. 8 (sum of squared residuals) on parameters divided by ``scale``: scipy's
-    Levenberg–Marquardt, or with bounds its trust-region reflective counterpart (LM takes no bounds)."""
-
-    def scaled(z: FloatArray) -> FloatArray:
-        return residual(z * scale)
-
-    if lower is None and upper is None:
-        result = least_squares(scaled, x0 / scale, method="lm", x_scale="jac")
-    else:
-        lo = np.full(x0.size, -np.inf) if lower is None else lower / scale
-        hi = np.full(x0.size, np.inf) if upper is None else upper / scale
-        start = np.clip(x0 / scale, lo, hi)
-        result = least_squares(scaled, start, method="trf", bounds=(lo, hi), x_scale="jac")
-    x = result.x * scale
-    r = result.fun
-    n, p = len(r), len(x)
-    ssr = float(r @ r)
-    dof = n - p
-    if dof > 0:
-        jtj = result.jac.T @ result.jac
-        try:
-            cov_scaled = np.linalg.inv(jtj) * (ssr / dof)
-        except np.linalg.LinAlgError:
-            cov_scaled = np.full((p, p), np.nan)
-        cov = cov_scaled * np.outer(scale, scale)
-    else:
-        cov = np.full((p, p), np.nan)
-    stderr = np.sqrt(np.clip(np.diag(cov), 0, None))
-    sst = float(((target - target.mean()) ** 2).sum())
-    ssr_safe = max(ssr, 1e-300)
-    return EquationFit(
-        equation=equation,
-        values=dict(zip(names, map(float, x))),
-        stderr=dict(zip(names, map(float, stderr))),
-        covariance=cov,
-        rmse=math.sqrt(ssr / n),
-        r_squared=1.0 - ssr / sst if sst > 0 else float("nan"),
-        accuracy_pct=accuracy_pct(target, target + r),
-        n_points=n,
-        aic=n * math.log(ssr_safe / n) + 2 * p,
-        bic=n * math.log(ssr_safe / n) + p * math.log(n),
-        success=bool(result.success),
-        message=str(result.message),
-    )
-
-
-def fit_electrical(points: OperatingPoints) -> EquationFit:
+def fit_electrical(points: OperatingPoints) -> LeastSquaresFit:
     """Step 1, eq. 9: R and k_e from (V, i, ω)."""
     v, i, w = points.voltage_v, points.current_a, points.omega_rad_s
     design = np.column_stack([i, w])
@@ -328,10 +231,12 @@ def fit_electrical(points: OperatingPoints) -> EquationFit:
     def residual(x: FloatArray) -> FloatArray:
         return x[0] * i + x[1] * w - v  # y_t − y_m, eq. 8
 
-    return _levenberg_marquardt(residual, x0, scale, ["R_ohm", "k_e"], v, "electrical (eq. 9)")
+    return fit_least_squares(
+        residual, x0, ["R_ohm", "k_e"], scale=scale, target=v, title="electrical (eq. 9)"
+    )
 
 
-def fit_mechanical(points: OperatingPoints, k_t: float, k: float | None) -> EquationFit:
+def fit_mechanical(points: OperatingPoints, k_t: float, k: float | None) -> LeastSquaresFit:
     """Step 2, eq. 10: C_p, B, T_f (and k when ``k`` is None) from (ω, i) with k_t known."""
     i, w = points.current_a, np.abs(points.omega_rad_s)
     k_start = 3.0 if k is None else float(k)
@@ -350,22 +255,28 @@ def fit_mechanical(points: OperatingPoints, k_t: float, k: float | None) -> Equa
         def residual(x: FloatArray) -> FloatArray:
             return (x[0] * w**k + x[1] * w + x[2]) / k_t - i
 
-        return _levenberg_marquardt(
-            residual, lin0, scale, ["C_p", "B", "T_f"], i, "mechanical (eq. 10)", lower=nonnegative
+        return fit_least_squares(
+            residual,
+            lin0,
+            ["C_p", "B", "T_f"],
+            scale=scale,
+            lower=nonnegative,
+            target=i,
+            title="mechanical (eq. 10)",
         )
 
     def residual_k(x: FloatArray) -> FloatArray:
         return (x[0] * w ** x[3] + x[1] * w + x[2]) / k_t - i
 
-    return _levenberg_marquardt(
+    return fit_least_squares(
         residual_k,
         np.append(lin0, k_start),
-        np.append(scale, 1.0),
         ["C_p", "B", "T_f", "k"],
-        i,
-        "mechanical (eq. 10)",
+        scale=np.append(scale, 1.0),
         lower=np.append(nonnegative, K_RANGE[0]),
         upper=np.append(np.full(3, np.inf), K_RANGE[1]),
+        target=i,
+        title="mechanical (eq. 10)",
     )
 
 
@@ -417,7 +328,7 @@ def estimate(
 
 def _second_step(
     points: OperatingPoints,
-    electrical: EquationFit,
+    electrical: LeastSquaresFit,
     k: float | None,
     fit_k: bool,
     exponents: tuple[int, ...],
@@ -543,7 +454,7 @@ def estimate_with_esc(
     return replace(result, forward_accuracy_pct=forward)
 
 
-def _fit_electrical_with_esc(terms: ElectricalTerms, side: str, c0_start: float) -> EquationFit:
+def _fit_electrical_with_esc(terms: ElectricalTerms, side: str, c0_start: float) -> LeastSquaresFit:
     """R, k_e and the idle offset c₀ of eq. 9 through the ESC (:mod:`.esc`), started from the scalar
     search's c₀ and the linear fit at it; the residual in volts (each bin divided by its mean duty)."""
     coef, _, _ = fit_electrical_balance(terms, c0_start, side)
@@ -555,15 +466,15 @@ def _fit_electrical_with_esc(terms: ElectricalTerms, side: str, c0_start: float)
 
     x0 = np.array([coef[1], coef[0], c0_start])
     scale = np.array([max(abs(x0[0]), 1e-3), max(abs(x0[1]), 1e-5), 0.05])
-    return _levenberg_marquardt(
+    return fit_least_squares(
         residual,
         x0,
-        scale,
         ["R_ohm", "k_e", "idle_offset"],
-        y_start,
-        f"electrical through the ESC (eq. 9, {side}-side current)",
+        scale=scale,
         lower=np.array([0.0, 0.0, IDLE_OFFSET_RANGE[0]]),
         upper=np.array([np.inf, np.inf, IDLE_OFFSET_RANGE[1]]),
+        target=y_start,
+        title=f"electrical through the ESC (eq. 9, {side}-side current)",
     )
 
 
@@ -577,7 +488,7 @@ class SpeedOnlyFit:
     """A model calibrated on speed alone: the parameters and how well they reproduce the speed."""
 
     params: MotorParams
-    fit: EquationFit
+    fit: LeastSquaresFit
     points: OperatingPoints = field(repr=False)
 
 
@@ -634,8 +545,8 @@ def estimate_speed_only(
     start = {"k_e": base.k_e, "C_p": max(base.C_p, 1e-14), "T_f": base.T_f}
     typical = {"k_e": base.k_e, "C_p": max(base.C_p, 1e-12), "T_f": max(abs(base.T_f), 1e-3)}
     x0 = np.array([start[n] for n in names])
-    fit = _levenberg_marquardt(
-        residual, x0, np.array([typical[n] for n in names]), names, w, "forward speed ω(V)"
+    fit = fit_least_squares(
+        residual, x0, names, scale=np.array([typical[n] for n in names]), target=w, title="forward speed ω(V)"
     )
     params = model(np.array([fit.values[n] for n in names]))
     return SpeedOnlyFit(params=params, fit=fit, points=points)

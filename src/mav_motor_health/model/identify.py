@@ -57,7 +57,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import lsq_linear, minimize_scalar
+from scipy.optimize import minimize_scalar
 
 from ..errors import FitError
 from ..telemetry.table import TelemetryTable
@@ -70,6 +70,7 @@ from .esc import (
 from .esc import fit_electrical_balance as _electrical_fit
 from .esc import search_idle_offset as _pooled_electrical
 from .estimation import K_BIC_MARGIN, choose_exponent
+from .lsq import fit_linear
 from .params import MotorParams
 
 __all__ = [
@@ -87,6 +88,8 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
+#: the mechanical balance's coefficients, in its design matrix's order (:func:`_mechanical_design`)
+MECHANICAL_NAMES = ("C_p", "B", "T_f", "J_kg_m2")
 #: candidate propeller exponents
 K_CANDIDATES = (2.0, 2.5, 3.0, 3.5, 4.0)
 #: a motor whose R, k_e or C_p departs from the motors' median by more than this is reported
@@ -602,9 +605,7 @@ def _scatter(rows: Sequence[tuple[FloatArray, FloatArray]]) -> float:
     """The RMS residual of an unregularised fit (C_p, B, T_f, J ≥ 0) of the rows: their noise scale."""
     a = np.vstack([r[0] for r in rows])
     y = np.concatenate([r[1] for r in rows])
-    col = np.maximum(np.abs(a).max(axis=0), 1e-30)
-    fitted = lsq_linear(a / col, y, bounds=(0.0, np.inf), method="bvls")
-    return max(float(np.std(y - (a / col) @ fitted.x)), 1e-12)
+    return max(float(np.std(fit_linear(a, y, MECHANICAL_NAMES).residual)), 1e-12)
 
 
 def _mechanical_fit(
@@ -617,17 +618,11 @@ def _mechanical_fit(
     weak = np.isfinite(prior_sd)
     a_aug = np.vstack([a / sigma, np.diag(1.0 / np.where(weak, prior_sd, 1.0))[weak]])
     y_aug = np.concatenate([y / sigma, (prior / np.where(weak, prior_sd, 1.0))[weak]])
-    col_aug = np.maximum(np.abs(a_aug).max(axis=0), 1e-30)
-    sol = lsq_linear(a_aug / col_aug, y_aug, bounds=(0.0, np.inf), method="bvls")
-    x = sol.x / col_aug
+    # every row already in units of its noise (the data's σ, the prior's sd): the covariance as it stands
+    fit = fit_linear(a_aug, y_aug, MECHANICAL_NAMES, title="mechanical balance", scale_covar=False)
+    x = np.array(list(fit.values.values()))
     sse = float(np.sum((y - a @ x) ** 2))
-    info = a_aug.T @ a_aug
-    try:
-        cov = np.linalg.inv(info)
-        stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        stderr = np.full(4, np.nan)
-    return x, stderr, sse, y.size
+    return x, np.array(list(fit.stderr.values())), sse, y.size
 
 
 def identify(

@@ -10,8 +10,9 @@ are those of eqs. 2 and 7, generalised::
     i_measured  = current_scale·i + current_offset_a           (what the sensor reports)
 
 so the forward solution stays one monotone scalar equation per sample,
-``f(ω) = C_p·ω^k + B2·ω² + (B + k_e²/R)·ω + T_f − k_e·V_eff/R = 0``, solved vectorised by the same
-bracketed Newton/bisection as :func:`mav_motor_health.model.equations.steady_state`.
+``f(ω) = C_p·ω^k + B2·ω² + (B + k_e²/R)·ω + T_f − k_e·V_eff/R = 0``, solved by the project's one solver
+(:func:`~mav_motor_health.model.solve.turning_speed`), as :func:`~mav_motor_health.model.equations.
+steady_state` solves the model without effects: with no effect applied, :func:`solve` gives its numbers.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from ...errors import ConfigError
 from ..equations import SteadyState
 from ..params import MotorParams
+from ..solve import turning_speed
 
 __all__ = [
     "Effect",
@@ -208,33 +210,21 @@ def solve(terms: ModelTerms, *, tol_rad_s: float = 1e-9, max_iter: int = 100) ->
     turning = (drive > 0) & ~bad
     omega = np.zeros(n)
     if np.any(turning):
-        d, lin, c, kk, b2 = drive[turning], linear[turning], Cp[turning], k[turning], B2[turning]
-        hi = d / lin
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            hi = np.where(c > 0, np.minimum(hi, (d / np.where(c > 0, c, 1.0)) ** (1.0 / kk)), hi)
-            hi = np.where(b2 > 0, np.minimum(hi, np.sqrt(d / np.where(b2 > 0, b2, 1.0))), hi)
-        lo = np.zeros_like(hi)
-        w = hi.copy()
-        for _ in range(max_iter):
-            wk1 = np.power(w, kk - 1.0, where=w > 0, out=np.zeros_like(w))
-            f = c * wk1 * w + b2 * w * w + lin * w - d
-            above = f > 0
-            hi = np.where(above, w, hi)
-            lo = np.where(above, lo, w)
-            fprime = c * kk * wk1 + 2.0 * b2 * w + lin
-            w_new = w - f / fprime
-            outside = ~((w_new >= lo) & (w_new <= hi))
-            w_new = np.where(outside, 0.5 * (lo + hi), w_new)
-            done = np.abs(w_new - w) <= tol_rad_s * np.maximum(1.0, w)
-            w = w_new
-            if np.all(done):
-                break
-        omega[turning] = w
+        law = (_one_value(x[turning]) for x in (Cp, k, B2))
+        omega[turning] = turning_speed(
+            drive[turning], linear[turning], *law, tol_rad_s=tol_rad_s, max_iter=max_iter
+        )
     current = np.where(turning, (v - ke * omega) / R, v / R)
     measured = t["current_scale"] * current + t["current_offset_a"]
     omega[bad] = np.nan
     measured[bad] = np.nan
     return SteadyState(omega.reshape(shape), measured.reshape(shape))
+
+
+def _one_value(values: FloatArray) -> float | FloatArray:
+    """``values`` as one number where every sample has the same (the load law of the model without
+    effects on it: the solver's closed form applies), else as they are."""
+    return float(values[0]) if values.size and bool((values == values[0]).all()) else values
 
 
 def equation_residuals(

@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
 
 from ...errors import ConfigError, FitError
+from ..lsq import LeastSquaresFit, fit_least_squares
 from ..params import MotorParams
 from .base import Effect, compose, solve
 
@@ -33,20 +33,41 @@ SCREEN_NFEV = 8
 
 @dataclass(frozen=True)
 class EffectsFit:
-    """A fitted composed model: parameters (base + effects), errors and information criteria."""
+    """A fitted composed model: parameters (base + effects), the joint fit's statistics
+    (:class:`~..lsq.LeastSquaresFit`, on the forward errors in units of each output's noise) and the
+    forward errors in the outputs' own units."""
 
     params: MotorParams
     effects: tuple[str, ...]
-    stderr: dict[str, float]
+    fit: LeastSquaresFit = field(repr=False)
     rmse_omega_rad_s: float
     rmse_current_a: float
     n_samples: int
-    n_parameters: int
-    aic: float
-    bic: float
-    success: bool
-    message: str
     units: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def stderr(self) -> dict[str, float]:
+        return self.fit.stderr
+
+    @property
+    def n_parameters(self) -> int:
+        return self.fit.n_parameters
+
+    @property
+    def aic(self) -> float:
+        return self.fit.aic
+
+    @property
+    def bic(self) -> float:
+        return self.fit.bic
+
+    @property
+    def success(self) -> bool:
+        return self.fit.success
+
+    @property
+    def message(self) -> str:
+        return self.fit.message
 
     def to_dict(self) -> dict[str, Any]:
         p = self.params
@@ -222,10 +243,6 @@ def _fit_one(
             lower.append(par.lower)
             upper.append(par.upper)
             units[f"{e.name}.{par.name}"] = par.unit
-    sc = np.asarray(scale, dtype=float)
-    lo = np.asarray(lower, dtype=float) / sc
-    hi = np.asarray(upper, dtype=float) / sc
-    z0 = np.clip(np.asarray(x0) / sc, lo, hi)
 
     def unpack(x: FloatArray) -> tuple[MotorParams, list[tuple[Effect, dict[str, float]]]]:
         base = dict(zip(names[: len(BASE_PARAMETERS) + vary_k], x))
@@ -260,13 +277,22 @@ def _fit_one(
         sigma = (_rms(w - w0) or 1.0, _rms(i - i0) or 1.0)
     s_w, s_i = (max(float(s), 1e-9) for s in sigma)
 
-    def residual(z: FloatArray) -> FloatArray:
-        pw, pi = predict(z * sc)
+    def residual(x: FloatArray) -> FloatArray:
+        pw, pi = predict(x)
         r = np.concatenate([(w - pw) / s_w, (i - pi) / s_i])
         return np.where(np.isfinite(r), r, 1e3)
 
-    result = least_squares(residual, z0, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev)
-    x = result.x * sc
+    fit = fit_least_squares(
+        residual,
+        x0,
+        names,
+        scale=scale,
+        lower=lower,
+        upper=upper,
+        title=f"output-error fit with effects: {', '.join(e.name for e in effects) or 'none'}",
+        max_nfev=max_nfev,
+    )
+    x = np.array(list(fit.values.values()))
     params, values = unpack(x)
     try:
         fitted = MotorParams(
@@ -283,29 +309,14 @@ def _fit_one(
         raise FitError(
             f"the fit with effects {[e.name for e in effects]} left the valid range: {exc}"
         ) from exc
-    r = result.fun
-    n_res, p = len(r), len(x)
-    ssr = float(r @ r)
-    try:
-        jac = result.jac
-        cov = np.linalg.pinv(jac.T @ jac) * (ssr / max(n_res - p, 1))
-        stderr = np.sqrt(np.clip(np.diag(cov), 0, None)) * sc
-    except (np.linalg.LinAlgError, ValueError):
-        stderr = np.full(p, np.nan)
     pw, pi = predict(x)
-    ssr_safe = max(ssr, 1e-300)
     return EffectsFit(
         params=fitted,
         effects=tuple(e.name for e in effects),
-        stderr=dict(zip(names, map(float, stderr))),
+        fit=fit,
         rmse_omega_rad_s=_rms(w - pw),
         rmse_current_a=_rms(i - pi),
         n_samples=len(idx),
-        n_parameters=p,
-        aic=n_res * math.log(ssr_safe / n_res) + 2 * p,
-        bic=n_res * math.log(ssr_safe / n_res) + p * math.log(n_res),
-        success=bool(result.status > 0),
-        message=str(result.message),
         units=units,
     )
 
