@@ -781,7 +781,7 @@ def _fit_growth(
         return _tail_sigma(deviation), 0.0, 0.0
     design = np.column_stack([np.ones_like(a), a**2] + ([e**2] if paired else []))
     fit = fit_linear(design, s**2, ("quiet", "activity", "pairing")[: design.shape[1]])  # variances ≥ 0
-    coefficients = list(fit.values.values())
+    coefficients = fit.x
     s0 = math.sqrt(coefficients[0])
     if not s0 > 0:  # all of it grows with the activity: keep a floor at the quietest bin's
         s0 = float(np.min(s))

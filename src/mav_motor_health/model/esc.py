@@ -153,9 +153,7 @@ def fit_electrical_balance(
     by the mean duty; NaN where the bin's duty says nothing)."""
     y, a, weight = terms.weighted_rows(c0, side)
     fit = fit_linear(a, y, ("k_e", "R_ohm"), title=f"electrical balance ({side}-side current)")
-    coef = np.array(list(fit.values.values()))
-    resid = np.where(weight > 0, -fit.residual, np.nan)
-    return coef, np.array(list(fit.stderr.values())), resid
+    return fit.x, fit.x_stderr, np.where(weight > 0, -fit.residual, np.nan)
 
 
 def search_idle_offset(terms: Mapping[int, ElectricalTerms], side: str) -> tuple[float, float, float]:

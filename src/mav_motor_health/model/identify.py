@@ -620,9 +620,8 @@ def _mechanical_fit(
     y_aug = np.concatenate([y / sigma, (prior / np.where(weak, prior_sd, 1.0))[weak]])
     # every row already in units of its noise (the data's σ, the prior's sd): the covariance as it stands
     fit = fit_linear(a_aug, y_aug, MECHANICAL_NAMES, title="mechanical balance", scale_covar=False)
-    x = np.array(list(fit.values.values()))
-    sse = float(np.sum((y - a @ x) ** 2))
-    return x, np.array(list(fit.stderr.values())), sse, y.size
+    sse = float(np.sum((y - a @ fit.x) ** 2))
+    return fit.x, fit.x_stderr, sse, y.size
 
 
 def identify(

@@ -76,6 +76,16 @@ class LeastSquaresFit:
         return tuple(self.values)
 
     @property
+    def x(self) -> FloatArray:
+        """The values as an array, in the order of :attr:`names`."""
+        return np.array(list(self.values.values()))
+
+    @property
+    def x_stderr(self) -> FloatArray:
+        """The standard errors as an array, in the order of :attr:`names`."""
+        return np.array(list(self.stderr.values()))
+
+    @property
     def n_points(self) -> int:
         return int(self.residual.size)
 

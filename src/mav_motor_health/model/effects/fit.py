@@ -292,7 +292,7 @@ def _fit_one(
         title=f"output-error fit with effects: {', '.join(e.name for e in effects) or 'none'}",
         max_nfev=max_nfev,
     )
-    x = np.array(list(fit.values.values()))
+    x = fit.x
     params, values = unpack(x)
     try:
         fitted = MotorParams(
