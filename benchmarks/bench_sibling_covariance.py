@@ -26,7 +26,10 @@ world's test flights (one per fault and one healthy, per turbulence level, 60 s)
 does, and at each judged sample of each motor:
 
 * *as judged*: ``z_m = (r_m − median_m)/√Σ_mm`` (the motor on its own, in its identified spread);
-* *against its siblings*: ``g_m`` above.
+* *less its siblings' median* (the median of the others' aligned values, where all but one have one);
+* *against its siblings*: ``g_m`` above;
+* *against its siblings at the activity*: ``g_m`` with ``Σ(a) = S0 + a²·S1`` at the motor's input activity
+  (each element of Σ fitted on [1, a²] over the identification flight; measured, not kept: docs/flight.md).
 
 The quantities: the torque balance's residual (``torque_residual_nm``: friction above, a lighter propeller
 below), the voltage balance's (``voltage_residual_v``: an open transistor above) and the speed deviation
@@ -77,7 +80,7 @@ SIGNATURES = {
 }
 QUANTITIES = ("torque", "voltage", "speed")
 #: the statistics compared: the motor alone, less its siblings' median, against their linear prediction
-STATISTICS = ("alone", "median off", "against")
+STATISTICS = ("alone", "median off", "against", "against at the activity")
 #: the healthy samples' quantile each statistic is calibrated on
 HEALTHY_Q = 99.9
 #: at least this many aligned samples to estimate Σ, and this many after onset to take a median
@@ -98,16 +101,19 @@ def quantity(result, name: str) -> np.ndarray:
 
 def aligned(
     result, name: str, motors: list[int], max_age_s: float
-) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """For each motor, at its own samples' times: the matrix of every motor's latest finite value at most
-    ``max_age_s`` old (columns in ``motors``' order; the motor's own column its own value), and the times."""
+) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """For each motor, at its own samples' times: the times, the matrix of every motor's latest finite value
+    at most ``max_age_s`` old (columns in ``motors``' order; the motor's own column its own value), and the
+    motor's own input activity there."""
     values = quantity(result, name)
     series = {}
+    activity = {}
     for m in motors:
         sel = result["motor"] == m
         t, v = result["time_s"][sel], values[sel]
         ok = np.isfinite(v)
         series[m] = (t, v, t[ok], v[ok])
+        activity[m] = np.asarray(result["input_activity_v"][sel], dtype=float)
     out = {}
     for m in motors:
         t = series[m][0]
@@ -123,24 +129,41 @@ def aligned(
             latest = np.where(have, vo[jj] if vo.size else np.nan, np.nan)
             age = np.where(have, t - (to[jj] if to.size else 0.0), np.inf)
             columns.append(np.where(age <= max_age_s, latest, np.nan))
-        out[m] = (t, np.column_stack(columns))
+        out[m] = (t, np.column_stack(columns), activity[m])
     return out
 
 
-def covariance(rows: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
-    """Each motor's median and the covariance of the rows where every motor has a value (None: too few)."""
-    stack = np.vstack(rows)
-    full = stack[np.isfinite(stack).all(axis=1)]
-    if full.shape[0] < MIN_SAMPLES:
+def covariance(
+    rows: list[np.ndarray], activity: list[np.ndarray]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Each motor's median, the covariance of the rows where every motor has a value, and that covariance
+    as it grows with the input activity, ``Σ(a) = S0 + a²·S1`` (each element's product fitted on [1, a²],
+    both parts made positive semi-definite); None: too few rows."""
+    stack, a = np.vstack(rows), np.concatenate(activity)
+    full = np.isfinite(stack).all(axis=1) & np.isfinite(a)
+    if full.sum() < MIN_SAMPLES:
         return None
-    center = np.median(full, axis=0)
-    return center, np.cov(full - center, rowvar=False)
+    center = np.median(stack[full], axis=0)
+    x = stack[full] - center
+    products = (x[:, :, None] * x[:, None, :]).reshape(x.shape[0], -1)
+    design = np.column_stack([np.ones(x.shape[0]), a[full] ** 2])
+    coefficients = np.linalg.lstsq(design, products, rcond=None)[0]
+    s0, s1 = (_psd(c.reshape(x.shape[1], x.shape[1])) for c in coefficients)
+    return center, np.cov(x, rowvar=False), s0, s1
+
+
+def _psd(matrix: np.ndarray) -> np.ndarray:
+    """The nearest positive semi-definite matrix (negative eigenvalues set to 0)."""
+    sym = 0.5 * (matrix + matrix.T)
+    values, vectors = np.linalg.eigh(sym)
+    return (vectors * np.maximum(values, 0.0)) @ vectors.T
 
 
 def statistics_of(
-    matrix: np.ndarray, column: int, center: np.ndarray, cov: np.ndarray
+    matrix: np.ndarray, activity: np.ndarray, column: int, fitted: tuple[np.ndarray, ...]
 ) -> tuple[np.ndarray, ...]:
     """The motor in ``column`` in each of :data:`STATISTICS` (NaN where its inputs are missing)."""
+    center, cov, s0, s1 = fitted
     x = matrix - center
     own = x[:, column]
     alone = own / np.sqrt(cov[column, column])
@@ -151,8 +174,16 @@ def statistics_of(
         median_off = np.where(enough, own - np.nanmedian(others, axis=1), np.nan)
     precision = np.linalg.pinv(cov)
     against = x @ (precision[column] / np.sqrt(precision[column, column]))
-    full = np.isfinite(x).all(axis=1)
-    return alone, median_off, np.where(full, against, np.nan)
+    full = np.isfinite(x).all(axis=1) & np.isfinite(activity)
+    # Σ at each sample's activity: the controller's pattern as strong as the air makes it there
+    a2 = np.where(np.isfinite(activity), activity, 0.0) ** 2
+    n = x.shape[1]
+    ridge = 1e-9 * np.trace(cov) / n * np.eye(n)
+    at = np.linalg.inv(s0[None] + a2[:, None, None] * s1[None] + ridge)
+    row = at[:, column, :]
+    with np.errstate(invalid="ignore"):
+        at_activity = np.einsum("ij,ij->i", np.nan_to_num(x), row) / np.sqrt(row[:, column])
+    return alone, median_off, np.where(full, against, np.nan), np.where(full, at_activity, np.nan)
 
 
 def _quantile(pool: list[np.ndarray]) -> float:
@@ -177,7 +208,8 @@ def one_world(world: int, max_age_s: float) -> dict:
         motors = sorted(int(m) for m in np.unique(ident["motor"]))
         fitted = {}
         for name in QUANTITIES:
-            found = covariance([matrix for _, matrix in aligned(ident, name, motors, max_age_s).values()])
+            columns = aligned(ident, name, motors, max_age_s).values()
+            found = covariance([matrix for _, matrix, _ in columns], [a for _, _, a in columns])
             if found is not None:
                 fitted[name] = found
         # per level and quantity: healthy |statistics|, and each fault's departures, per statistic
@@ -185,10 +217,12 @@ def one_world(world: int, max_age_s: float) -> dict:
         departures: dict[tuple[str, str, str], list[float]] = {}
         for flight in world_flights(world, duration_s=60.0, healthy_flights=1, faults=tuple(SIGNATURES)):
             result = diagnose_flight(flight, folder, vehicle, profile)
-            for name, (center, cov) in fitted.items():
+            for name, fit in fitted.items():
                 pools = healthy.setdefault((flight.turbulence, name), [[] for _ in STATISTICS])
-                for column, (m, (t, matrix)) in enumerate(aligned(result, name, motors, max_age_s).items()):
-                    values = statistics_of(matrix, column, center, cov)
+                for column, (m, (t, matrix, activity)) in enumerate(
+                    aligned(result, name, motors, max_age_s).items()
+                ):
+                    values = statistics_of(matrix, activity, column, fit)
                     every = np.all([np.isfinite(v) for v in values], axis=0)
                     faulty = flight.fault is not None and m == flight.motor
                     well = (t < flight.onset_s if faulty else np.ones(t.size, dtype=bool)) & every
