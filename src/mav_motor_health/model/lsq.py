@@ -53,9 +53,10 @@ def accuracy_pct(measured: ArrayLike, modelled: ArrayLike) -> float:
 class LeastSquaresFit:
     """One least-squares fit: what it found, how sure, and how well it fits.
 
-    ``residual`` is model − target per row (eq. 8's ``y_t − y_m`` in the paper's sign), in the units the
-    fit minimised; ``target`` the measured values where the residual is in their units (then
-    :attr:`r_squared` and :attr:`accuracy_pct` say how well the model reproduces them), else None."""
+    ``residual`` is each row's residual as the fit minimised it, in its units; ``target`` the measured
+    values where the residual is model − target in their units (eq. 8's ``y_t − y_m`` in the paper's
+    sign: then :attr:`r_squared` and :attr:`accuracy_pct` say how well the model reproduces them), else
+    None."""
 
     title: str
     values: dict[str, float]
