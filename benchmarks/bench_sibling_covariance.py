@@ -70,6 +70,7 @@ from mav_motor_health.evaluation.worlds import (  # noqa: E402
 )
 from mav_motor_health.sim.worlds import draw_world  # noqa: E402
 from mav_motor_health.telemetry import sources  # noqa: E402
+from mav_motor_health.telemetry.assemble import held  # noqa: E402
 
 PROFILE = "flight_vehicle"
 #: the faults measured, each with the quantities it departs in and its direction there
@@ -122,13 +123,7 @@ def aligned(
             if o == m:
                 columns.append(series[m][1])
                 continue
-            to, vo = series[o][2], series[o][3]
-            j = np.searchsorted(to, t, side="right") - 1
-            have = (j >= 0) & (to.size > 0)
-            jj = np.maximum(j, 0)
-            latest = np.where(have, vo[jj] if vo.size else np.nan, np.nan)
-            age = np.where(have, t - (to[jj] if to.size else 0.0), np.inf)
-            columns.append(np.where(age <= max_age_s, latest, np.nan))
+            columns.append(held((series[o][2], series[o][3]), t, max_age_s)[0])
         out[m] = (t, np.column_stack(columns), activity[m])
     return out
 
