@@ -138,6 +138,12 @@ def test_a_vehicle_file_carries_the_band_noise_and_reads_it_back(tmp_path: Path)
             after_step=(2.5, 1.25, 1.0, 1.0),
             slow_speed=EquationNoise(1.9, 5.0, 0.0, -0.4),
             slow_current=EquationNoise(0.12, 0.3, 0.01, 0.05),
+            # the speed against the siblings' prediction (diagnosis/prediction.py): a covariance may be
+            # negative (opposite motors move opposite ways)
+            speed_covariance=((1, 17.6), (2, -6.5)),
+            speed_lagged_covariance=((1, 17.6), (2, -5.9)),
+            speed_vs_siblings_after_step=(2.1, 1.3, 1.0, 1.0),
+            speed_vs_siblings=EquationNoise(2.8, 3.1, 0.0, 0.02),
         ),
         2: BandNoise(3.9, float("nan"), 10.0, 0.0, 850),
     }

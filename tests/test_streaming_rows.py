@@ -190,11 +190,18 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
 
 
 @pytest.mark.parametrize(
-    "limited, step_sigmas",
-    [(False, 0.0), (True, 0.0), (True, 1.0)],
-    ids=["within the conditions", "grown as siblings run", "a step in the motor's own noise"],
+    "limited, step_sigmas, against",
+    [(False, 0.0, False), (True, 0.0, False), (True, 1.0, False), (True, 0.0, True)],
+    ids=[
+        "within the conditions",
+        "grown as siblings run",
+        "a step in the motor's own noise",
+        "the speed against the siblings' prediction",
+    ],
 )
-def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor, limited, step_sigmas) -> None:
+def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
+    paper_motor, limited, step_sigmas, against
+) -> None:
     """With the torque judged against the siblings (diagnosis/siblings.py), a motor's results depend on
     the others': batches cut in the order samples arrive (time, then motor) through
     :meth:`StreamingDiagnoser.update_motors` give what :func:`diagnose` gives the whole table. (Every
@@ -203,7 +210,9 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor, 
     where the shipped profile grows the bands as the siblings' deviations run (rules/bands.py): the
     bands depend on the other motors' too, and are the same both ways. ``step_sigmas``: a step also where
     the model speed jumps by that many σ of the motor's noise (rules/balance.py), the model speed of a
-    batch's first sample compared with the one carried from the batch before."""
+    batch's first sample compared with the one carried from the batch before. ``against``: the speed
+    judged less the siblings' linear prediction (diagnosis/prediction.py), from a covariance whose
+    motors move together, so that the prediction takes part of every motor's deviation off."""
     motors = _window(lost=False)
     from mav_motor_health.diagnosis.pipeline import diagnose
     from mav_motor_health.telemetry.table import TelemetryTable
@@ -224,6 +233,23 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor, 
         )
         for m in motors
     }
+    if against:
+        profile = dataclasses.replace(profile, speed_against_siblings=1.0)
+        # every pair correlated 0.5, each motor its own variance
+        spread = {m: 6.0 + m for m in motors}
+        noise = {
+            m: dataclasses.replace(
+                n,
+                speed_covariance=tuple(
+                    (o, spread[m] * spread[o] * (1.0 if o == m else 0.5)) for o in sorted(motors)
+                ),
+                speed_lagged_covariance=tuple(
+                    (o, spread[m] * spread[o] * (1.0 if o == m else 0.4)) for o in sorted(motors)
+                ),
+                speed_vs_siblings=EquationNoise(0.8 * n.speed_rad_s, 0.8 * n.speed_rad_s_per_v),
+            )
+            for m, n in noise.items()
+        }
     names = ("time_s", "voltage_v", "omega_rad_s", "current_a", "bus_voltage_v", "throttle", "esc_current_a")
     table = TelemetryTable(
         {
@@ -241,9 +267,16 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor, 
         excess = whole["input_activity_v"][m1] / ((1.0 + profile.range_margin) * calm)
         sigma = noise[1].sigmas(whole["input_activity_v"][m1])[0] * profile.noise_bands
         band = whole["speed_band_rad_s"][m1]
-        assert (band >= sigma * (1 - 1e-12)).all()
+        if against:  # judged against the siblings' prediction, narrower by its noise's share
+            band = band / np.where(np.isfinite(whole["speed_siblings_rad_s"][m1]), 0.8, 1.0)
+        assert (band >= sigma * (1 - 1e-9)).all()
         assert (band < 0.9 * sigma * np.maximum(excess, 1.0) ** profile.conditions_growth).mean() > 0.05
     assert np.isfinite(whole["torque_siblings_nm"]).mean() > 0.5  # the stage ran
+    if against:  # the prediction made, and the speed judged against it
+        assert np.isfinite(whole["speed_siblings_rad_s"]).mean() > 0.3
+        alone = diagnose(table, paper_motor, load_profile("flight_vehicle"), noise)
+        moved = whole["omega_judged_rad_s"] != alone["omega_judged_rad_s"]
+        assert moved.mean() > 0.3 and np.isnan(alone["speed_siblings_rad_s"]).all()
     if step_sigmas:  # the model's jumps hold samples back that the volts' steps do not
         plain = diagnose(table, paper_motor, load_profile("flight_vehicle"), noise)
         held = plain["steady"] & ~whole["steady"]
@@ -251,7 +284,16 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(paper_motor, 
     arrival = np.lexsort((whole["motor"], whole["time_s"]))
     stream = StreamingDiagnoser(paper_motor, profile, list(motors), noise)
     rng = np.random.default_rng(19)
-    compared = ("state", "announced", "steady", "torque_siblings_nm", "speed_band_rad_s", "current_band_a")
+    compared = (
+        "state",
+        "announced",
+        "steady",
+        "torque_siblings_nm",
+        "speed_band_rad_s",
+        "current_band_a",
+        "speed_siblings_rad_s",
+        "omega_judged_rad_s",
+    )
     got = {name: np.full(len(whole), np.nan) for name in compared}
     k = 0
     while k < arrival.size:

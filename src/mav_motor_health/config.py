@@ -283,6 +283,7 @@ _PROFILE_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "conditions_siblings": (0.0, 100.0, ""),
     "conditions_siblings_s": (0.001, 600.0, "s"),
     "equation_bands": (0.0, 50.0, ""),
+    "speed_against_siblings": (0.0, 10.0, ""),
 }
 _VEHICLE_CHECK_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "speed_departure": (0.0, 1.0, ""),
@@ -447,6 +448,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
             lines.append(f"conditions_siblings_s = {profile.conditions_siblings_s!r}")
     if profile.equation_bands:
         lines.append(f"equation_bands = {profile.equation_bands!r}")
+    if profile.speed_against_siblings:
+        lines.append(f"speed_against_siblings = {profile.speed_against_siblings!r}")
     lines += [
         "",
         "[steady]",

@@ -11,7 +11,7 @@ little about B vs T_f) is pulled toward this vehicle's motor, not toward the pap
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -19,7 +19,9 @@ import numpy as np
 
 from .config import DEFAULT_MOTOR, MAX_MOTOR_NUMBER, load_motor_params, load_profile
 from .diagnosis import diagnose
-from .diagnosis.noise import BandNoise, measure_band_noise
+from .diagnosis.noise import BandNoise, EquationNoise, measure_band_noise, measure_speed_vs_siblings
+from .diagnosis.prediction import measure_speed_covariance
+from .diagnosis.profile import ThresholdProfile
 from .errors import DataError, FitError
 from .model.identify import Identification, identify
 from .model.params import MotorParams
@@ -157,18 +159,70 @@ def with_band_noise(
     # while the noise is measured, no band: every sample the rule judges counts (a band would set aside
     # those the log's pairing makes doubtful, and those are part of the noise the bands must cover)
     unbounded = {m: BandNoise.unbounded(input_current) for m in range(1, MAX_MOTOR_NUMBER + 1)}
-    diagnosed = []
-    for table in tables:
-        calibrated = vehicle.calibrate(table)
-        models = vehicle.models(range(1, max(int(m) for m in calibrated.motors()) + 1))
-        diagnosed.append(diagnose(calibrated, models, profile_rules, unbounded))
+    diagnosed = _diagnosed(vehicle, tables, profile_rules, unbounded)
     # the rule's wait after a step: how much wider the deviations are while it waits (noise.py)
     settle_s = float(getattr(profile_rules.steady, "settle_s", 0.0))
     measured = measure_band_noise(diagnosed, profile_rules.min_command, settle_s, input_current)
+    measured = _with_siblings_prediction(vehicle, tables, profile_rules, diagnosed, measured, unbounded)
     noise = {m: dict(v) for m, v in vehicle.noise.items()}
     for motor, band in measured.items():
         noise.setdefault(motor, {}).update(band.as_mapping())
     return replace(vehicle, noise=noise)
+
+
+def _diagnosed(
+    vehicle: VehicleParams,
+    tables: Sequence[TelemetryTable],
+    profile: ThresholdProfile,
+    noise: Mapping[int, BandNoise],
+) -> list[TelemetryTable]:
+    """Each flight calibrated as the vehicle's ESC and current reading say and diagnosed with its models."""
+    out = []
+    for table in tables:
+        calibrated = vehicle.calibrate(table)
+        models = vehicle.models(range(1, max(int(m) for m in calibrated.motors()) + 1))
+        out.append(diagnose(calibrated, models, profile, noise))
+    return out
+
+
+def _with_siblings_prediction(
+    vehicle: VehicleParams,
+    tables: Sequence[TelemetryTable],
+    profile_rules: ThresholdProfile,
+    diagnosed: Sequence[TelemetryTable],
+    measured: dict[int, BandNoise],
+    unbounded: Mapping[int, BandNoise],
+) -> dict[int, BandNoise]:
+    """``measured`` with each motor's speed covariance with its siblings and the noise of its speed
+    deviation less their linear prediction (:mod:`.diagnosis.prediction`): Σ from the flights as
+    diagnosed, then the flights diagnosed again with it (the noise still unbounded, each motor's offset
+    applied as the bands will apply it) and the deviation less the siblings' part measured. Unchanged where
+    Σ cannot be measured (too few motors or instants where all have a value)."""
+    tau_s = float(getattr(profile_rules.steady, "residual_tau_s", 0.0))
+    covariance, lagged = measure_speed_covariance(diagnosed, tau_s, profile_rules.min_command)
+    if not covariance or not set(covariance) <= set(measured):
+        return measured
+    with_covariance = {
+        m: replace(n, speed_covariance=covariance.get(m, ()), speed_lagged_covariance=lagged.get(m, ()))
+        for m, n in measured.items()
+    }
+    predicting = dict(unbounded)
+    for m, n in with_covariance.items():
+        predicting[m] = replace(
+            unbounded[m],
+            speed_offset_rad_s=n.speed_offset_rad_s,
+            speed_covariance=n.speed_covariance,
+            speed_lagged_covariance=n.speed_lagged_covariance,
+            speed_vs_siblings=EquationNoise(math.inf),
+        )
+    profile_predicting = replace(profile_rules, speed_against_siblings=1.0)
+    again = _diagnosed(vehicle, tables, profile_predicting, predicting)
+    settle_s = float(getattr(profile_rules.steady, "settle_s", 0.0))
+    against, after_step = measure_speed_vs_siblings(again, profile_rules.min_command, settle_s)
+    return {
+        m: replace(n, speed_vs_siblings=against.get(m), speed_vs_siblings_after_step=after_step)
+        for m, n in with_covariance.items()
+    }
 
 
 def _as_prior(params: MotorParams) -> MotorParams:

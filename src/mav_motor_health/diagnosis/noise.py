@@ -98,6 +98,20 @@ the activity (its slope fitted as 0) where the fast one's grows, and on held-out
 nine times the identified activity, that flat σ named healthy motors' torque F1.1 and F3.1 on up to a
 tenth of their samples.
 
+**The speed against its siblings' prediction.** Where the attitude controller drives the motors in a
+pattern, much of a healthy motor's speed deviation is explained by its siblings' of the same moment
+(:mod:`.prediction`). Identification measures the covariance of the motors' judged speed deviations on
+its flight (``speed_covariance_M``: each motor's with motor M, its own variance included, (rad/s)²),
+diagnoses the flight again with it, and measures the deviation less the siblings' part like a balance
+(``speed_vs_siblings_rad_s``, ``..._per_v``, ``..._per_pairing``, ``speed_vs_siblings_offset_rad_s``); the
+profile's ``speed_against_siblings`` judges against it where its σ is the narrower (:mod:`.rules.against`).
+Two things set it apart from a balance's noise. A prediction from strongly correlated siblings has
+heavier tails than a Gaussian with the same 99 % tail, and the bands and the sequential test's design
+assume a Gaussian's: its σ is widened until its 99.9 % tail too lies where a Gaussian's does (the motors
+pooled, :data:`DEEP_TAIL_SHARE`). And in a manoeuvre the prediction from the siblings' latest values lags
+more than each motor's own deviation does: how much wider it is in each bin of the wait after a step is
+measured apart (``speed_vs_siblings_after_step_1`` ...; a bin not measured is judged alone).
+
 A profile then sets ``noise_bands = n``: the bands are n·σ(a) of each motor, a dimensionless number that
 is the same for every vehicle. A vehicle file without the noise cannot be diagnosed with such a profile;
 :func:`require_noise` says which key is missing and how to get it.
@@ -126,12 +140,16 @@ __all__ = [
     "NoiseRows",
     "band_noise_of",
     "measure_band_noise",
+    "measure_speed_vs_siblings",
     "require_noise",
 ]
 
 #: the wait after an input step (the balance rule's ``settle_s``) is cut into this many bins, each with its
 #: own measured widening ("After an input step", module doc)
 AFTER_STEP_BINS = 4
+#: the motor numbers a motor's ``speed_covariance_M`` keys may name (the vehicle file's motor numbers,
+#: config.MAX_MOTOR_NUMBER)
+COVARIANCE_MOTORS = 32
 #: the keys of a vehicle file's ``[noise.N]`` that :class:`BandNoise` reads, with their units
 NOISE_KEYS = {
     "speed_rad_s": "rad/s",
@@ -174,6 +192,16 @@ NOISE_KEYS = {
     "slow_torque_nm_per_v": "N·m per V of input activity",
     "slow_torque_nm_per_pairing": "N·m per rad/s of pairing error",
     "slow_torque_offset_nm": "N·m",
+    "speed_vs_siblings_rad_s": "rad/s",
+    "speed_vs_siblings_rad_s_per_v": "rad/s per V of input activity",
+    "speed_vs_siblings_per_pairing": "rad/s per rad/s of pairing error",
+    "speed_vs_siblings_offset_rad_s": "rad/s",
+    **{f"speed_vs_siblings_after_step_{b + 1}": "times its settled sigma" for b in range(AFTER_STEP_BINS)},
+    **{f"speed_covariance_{m}": f"(rad/s)^2 with motor {m}" for m in range(1, COVARIANCE_MOTORS + 1)},
+    **{
+        f"speed_lagged_covariance_{m}": f"(rad/s)^2 with motor {m}'s latest before"
+        for m in range(1, COVARIANCE_MOTORS + 1)
+    },
 }
 #: the keys of each equation's noise (module doc, "Each equation's own noise"), in the order of
 #: :class:`EquationNoise`'s fields
@@ -215,9 +243,21 @@ EQUATION_KEYS = {
         "slow_torque_nm_per_pairing",
         "slow_torque_offset_nm",
     ),
+    "speed_vs_siblings": (
+        "speed_vs_siblings_rad_s",
+        "speed_vs_siblings_rad_s_per_v",
+        "speed_vs_siblings_per_pairing",
+        "speed_vs_siblings_offset_rad_s",
+    ),
 }
+#: the keys of the speed deviations' covariance with each motor, by motor number
+COVARIANCE_KEYS = {m: f"speed_covariance_{m}" for m in range(1, COVARIANCE_MOTORS + 1)}
+#: the keys of its covariance with each motor's latest deviation before it (:mod:`.prediction`)
+LAGGED_COVARIANCE_KEYS = {m: f"speed_lagged_covariance_{m}" for m in range(1, COVARIANCE_MOTORS + 1)}
 #: the after-step keys in bin order
 AFTER_STEP_KEYS = tuple(f"after_step_{b + 1}" for b in range(AFTER_STEP_BINS))
+#: the same of the speed less its siblings' prediction
+AGAINST_AFTER_STEP_KEYS = tuple(f"speed_vs_siblings_after_step_{b + 1}" for b in range(AFTER_STEP_BINS))
 #: the keys that may be negative (offsets from the model)
 SIGNED_NOISE_KEYS = (
     "speed_offset_rad_s",
@@ -228,6 +268,9 @@ SIGNED_NOISE_KEYS = (
     "slow_speed_offset_rad_s",
     "slow_current_offset_a",
     "slow_torque_offset_nm",
+    "speed_vs_siblings_offset_rad_s",
+    *COVARIANCE_KEYS.values(),
+    *LAGGED_COVARIANCE_KEYS.values(),
 )
 #: the identified speed range: these shares of the judged samples' model speeds lie inside it
 RANGE_SHARES = (0.01, 0.99)
@@ -237,6 +280,11 @@ CONDITION_SHARE = 0.95
 #: the share of |deviation| below the measured tail, and where a Gaussian's lies (in σ)
 TAIL_SHARE = 0.99
 TAIL_SIGMAS = 2.5758293035489
+#: the deeper tail a noise whose tails may be heavier than a Gaussian's is held to
+#: (:func:`measure_speed_vs_siblings`): this share of |z| within a Gaussian's, on at least this many samples
+DEEP_TAIL_SHARE = 0.999
+DEEP_TAIL_SIGMAS = 3.2905267314919
+DEEP_TAIL_SAMPLES = 2000
 #: fewer judged samples than this: the motor takes the vehicle's noise (all motors pooled)
 MIN_MOTOR_SAMPLES = 200
 #: the fewest samples of an activity bin
@@ -370,23 +418,30 @@ class _ConditionsMath:
         "After an input step"): 1 where the wait of ``settle_s`` is over (or the time is NaN), the
         measured widening of the sample's bin within it, NaN where that was not measured (not judged).
         (:class:`NoiseRows`: rows × samples, each row its motor's.)"""
-        since = np.asarray(since_step_s, dtype=float)
-        factor = np.ones(since.shape)
-        within = np.isfinite(since) & (since < settle_s)
-        if not within.any():
-            return factor
-        if not settle_s > 0:
-            factor[within] = np.nan
-            return factor
-        table = self.after_step_table  # one row of bins per motor, NaN where not measured
-        row = (
-            np.zeros(since.shape, dtype=np.intp)
-            if table.shape[0] == 1
-            else np.broadcast_to(np.arange(table.shape[0])[:, None], since.shape)
-        )
-        bins = np.clip((since[within] / settle_s * AFTER_STEP_BINS).astype(int), 0, AFTER_STEP_BINS - 1)
-        factor[within] = table[row[within], bins]
+        return after_step_factor(self.after_step_table, since_step_s, settle_s)
+
+
+def after_step_factor(
+    table: NDArray[np.float64], since_step_s: ArrayLike, settle_s: float
+) -> NDArray[np.float64]:
+    """:meth:`_ConditionsMath.after_step_factor` from a table of bins (one row of
+    :data:`AFTER_STEP_BINS` for all samples, or one per row of ``since_step_s``)."""
+    since = np.asarray(since_step_s, dtype=float)
+    factor = np.ones(since.shape)
+    within = np.isfinite(since) & (since < settle_s)
+    if not within.any():
         return factor
+    if not settle_s > 0:
+        factor[within] = np.nan
+        return factor
+    row = (
+        np.zeros(since.shape, dtype=np.intp)
+        if table.shape[0] == 1
+        else np.broadcast_to(np.arange(table.shape[0])[:, None], since.shape)
+    )
+    bins = np.clip((since[within] / settle_s * AFTER_STEP_BINS).astype(int), 0, AFTER_STEP_BINS - 1)
+    factor[within] = table[row[within], bins]
+    return factor
 
 
 @dataclass(frozen=True)
@@ -608,6 +663,21 @@ class BandNoise(_ConditionsMath):
     slow_current: EquationNoise | None = None
     #: the torque against its siblings averaged as long (rules/equations.py): its healthy spread
     slow_torque: EquationNoise | None = None
+    #: the speed deviation's covariance with each motor's on the healthy flight [(rad/s)²], (motor
+    #: number, covariance) in motor order, its own variance included (:mod:`.prediction`); empty: not
+    #: measured
+    speed_covariance: tuple[tuple[int, float], ...] = ()
+    #: its covariance with each motor's latest speed deviation before it [(rad/s)²] (:mod:`.prediction`,
+    #: "Before, never of the same instant"); empty: not measured
+    speed_lagged_covariance: tuple[tuple[int, float], ...] = ()
+    #: the speed deviation less its siblings' linear prediction (:mod:`.prediction`): its healthy spread,
+    #: which the speed is judged against where the profile's ``speed_against_siblings`` says; None: not
+    #: measured
+    speed_vs_siblings: EquationNoise | None = None
+    #: how many times wider that difference's tail is in each bin of the rule's wait after a step than
+    #: settled (as :attr:`after_step`, the motors pooled; NaN: not measured there, not judged against the
+    #: siblings there); empty: not measured
+    speed_vs_siblings_after_step: tuple[float, ...] = ()
 
     @classmethod
     def unbounded(cls, through_duty: bool = False) -> BandNoise:
@@ -664,6 +734,13 @@ class BandNoise(_ConditionsMath):
             for key in ("speed_per_pairing", "current_a_per_pairing", "pairing_error_high_rad_s"):
                 del values[key]
         values.update(zip(AFTER_STEP_KEYS, self.after_step))
+        values.update((COVARIANCE_KEYS[m], c) for m, c in self.speed_covariance)
+        values.update((LAGGED_COVARIANCE_KEYS[m], c) for m, c in self.speed_lagged_covariance)
+        values.update(
+            (key, f)
+            for key, f in zip(AGAINST_AFTER_STEP_KEYS, self.speed_vs_siblings_after_step)
+            if math.isfinite(f)
+        )
         for name, keys in EQUATION_KEYS.items():
             equation = getattr(self, name)
             if equation is not None:
@@ -704,6 +781,18 @@ class BandNoise(_ConditionsMath):
             slow_speed=_equation_of(values, EQUATION_KEYS["slow_speed"]),
             slow_current=_equation_of(values, EQUATION_KEYS["slow_current"]),
             slow_torque=_equation_of(values, EQUATION_KEYS["slow_torque"]),
+            speed_covariance=tuple(
+                (m, float(values[key])) for m, key in COVARIANCE_KEYS.items() if key in values
+            ),
+            speed_lagged_covariance=tuple(
+                (m, float(values[key])) for m, key in LAGGED_COVARIANCE_KEYS.items() if key in values
+            ),
+            speed_vs_siblings=_equation_of(values, EQUATION_KEYS["speed_vs_siblings"]),
+            speed_vs_siblings_after_step=tuple(
+                float(values.get(key, math.nan)) for key in AGAINST_AFTER_STEP_KEYS
+            )
+            if any(key in values for key in AGAINST_AFTER_STEP_KEYS)
+            else (),
         )
 
 
@@ -924,6 +1013,81 @@ def measure_band_noise(
     return out
 
 
+def measure_speed_vs_siblings(
+    diagnosed: Sequence[TelemetryTable], min_command: float = 0.0, settle_s: float = 0.0
+) -> tuple[dict[int, EquationNoise], tuple[float, ...]]:
+    """Each motor's noise of its speed deviation less its siblings' linear prediction
+    (``speed_siblings_rad_s``, :mod:`.prediction`) on diagnosed healthy flights (noise unbounded), on the
+    judged samples that have one, measured as each balance's (:func:`_equation_noise`; motors with too
+    few: none); and with the rule's ``settle_s`` (> 0), how much wider it is while the rule waits after a
+    step, per bin of the wait, as :attr:`BandNoise.after_step` is measured (empty: not measured). In a
+    manoeuvre the prediction from the siblings' latest values lags more than each motor's own deviation
+    does: on held-out world 1005 the difference's tail after a step was several times its settled one."""
+    out: dict[int, EquationNoise] = {}
+    tables = [d for d in diagnosed if "speed_siblings_rad_s" in d.names]
+    if not tables:
+        return out, ()
+
+    def column(name: str, dtype: type = float) -> NDArray:
+        return np.concatenate([np.asarray(d[name], dtype=dtype) for d in tables])
+
+    steady = column("steady", bool)
+    usable = np.ones(steady.shape, dtype=bool)
+    if min_command > 0 and all("throttle" in d.names for d in tables):
+        usable &= column("throttle") >= min_command
+    against = column("omega_judged_rad_s") - column("omega_model_rad_s") - column("speed_siblings_rad_s")
+    usable &= np.isfinite(against)
+    activity = np.nan_to_num(column("input_activity_v"))
+    pairing = (
+        np.nan_to_num(column("pairing_error_rad_s"))
+        if all("pairing_error_rad_s" in d.names for d in tables)
+        else None
+    )
+    motors = column("motor", np.int64)
+    for motor in np.unique(motors):
+        found = _equation_noise(against, steady & usable & (motors == motor), activity, pairing)
+        if found is not None:
+            out[int(motor)] = found
+
+    def in_sigma() -> NDArray[np.float64]:
+        z = np.full(against.shape, np.nan)
+        for motor, n in out.items():
+            own = motors == motor
+            sigma = n.sigmas(activity[own], None if pairing is None else pairing[own])
+            z[own] = (against[own] - n.offset) / sigma
+        return z
+
+    # A prediction from strongly correlated siblings has heavier tails than a Gaussian of the same 99 %
+    # tail: σ is widened until the thousandth tail too lies where a Gaussian's does (the motors pooled)
+    z = in_sigma()
+    settled = steady & usable & np.isfinite(z)
+    if np.count_nonzero(settled) >= DEEP_TAIL_SAMPLES:
+        widen = max(1.0, float(np.quantile(np.abs(z[settled]), DEEP_TAIL_SHARE)) / DEEP_TAIL_SIGMAS)
+        if widen > 1.0:
+            out = {
+                m: replace(
+                    n,
+                    sigma=widen * n.sigma,
+                    per_activity=widen * n.per_activity,
+                    per_pairing=widen * n.per_pairing,
+                )
+                for m, n in out.items()
+            }
+            z = in_sigma()
+    if not (settle_s > 0 and out and all("since_step_s" in d.names for d in tables)):
+        return out, ()
+    since = column("since_step_s")
+    waiting = usable & ~steady & np.isfinite(since) & (since < settle_s) & np.isfinite(z)
+    if np.count_nonzero(settled) < MIN_AFTER_STEP_SAMPLES:
+        return out, ()
+    reference = _tail_sigma(z[settled])
+    ratios = [
+        max(1.0, float(t / reference)) if math.isfinite(t) else math.nan
+        for t in _tails_after_step(z, waiting, since, settle_s)
+    ]
+    return out, tuple(ratios) if any(math.isfinite(r) for r in ratios) else ()
+
+
 def _equation_noise(
     residual: NDArray[np.float64],
     rows: NDArray[np.bool_],
@@ -981,19 +1145,33 @@ def _after_step(
         _tail_sigma(z_speed[settled]),
         _tail_sigma(z_current[settled_current]) if settled_current.any() else math.nan,
     )
-    bins = np.clip((np.nan_to_num(since) / settle_s * AFTER_STEP_BINS).astype(int), 0, AFTER_STEP_BINS - 1)
+    speed_tails = _tails_after_step(z_speed, waiting, since, settle_s)
+    current_tails = _tails_after_step(z_current, current_waiting, since, settle_s)
     ratios = []
-    for b in range(AFTER_STEP_BINS):
-        in_bin = waiting & (bins == b)
-        if np.count_nonzero(in_bin) < MIN_AFTER_STEP_SAMPLES:
+    for speed_tail, current_tail in zip(speed_tails, current_tails):
+        if not math.isfinite(speed_tail):
             ratios.append(math.nan)
             continue
-        widening = _tail_sigma(z_speed[in_bin]) / reference[0]
-        current_bin = current_waiting & (bins == b)
-        if np.count_nonzero(current_bin) >= MIN_AFTER_STEP_SAMPLES and reference[1] > 0:
-            widening = max(widening, _tail_sigma(z_current[current_bin]) / reference[1])
+        widening = speed_tail / reference[0]
+        if math.isfinite(current_tail) and reference[1] > 0:
+            widening = max(widening, current_tail / reference[1])
         ratios.append(max(1.0, float(widening)))
     return tuple(ratios)
+
+
+def _tails_after_step(
+    z: NDArray[np.float64], waiting: NDArray[np.bool_], since: NDArray[np.float64], settle_s: float
+) -> list[float]:
+    """The tail σ of ``z`` on the ``waiting`` samples in each of :data:`AFTER_STEP_BINS` bins of the wait
+    (the time since the step over ``settle_s``); NaN for a bin of fewer than
+    :data:`MIN_AFTER_STEP_SAMPLES`."""
+    bins = np.clip((np.nan_to_num(since) / settle_s * AFTER_STEP_BINS).astype(int), 0, AFTER_STEP_BINS - 1)
+    tails = []
+    for b in range(AFTER_STEP_BINS):
+        in_bin = waiting & (bins == b)
+        enough = np.count_nonzero(in_bin) >= MIN_AFTER_STEP_SAMPLES
+        tails.append(float(_tail_sigma(z[in_bin])) if enough else math.nan)
+    return tails
 
 
 def band_noise_of(noise: Mapping[int, Mapping[str, float]]) -> dict[int, BandNoise]:

@@ -33,9 +33,10 @@ from ..model.params import MotorParams, MotorRows, same_type
 from ..telemetry.table import TelemetryTable
 from .noise import BandNoise, require_noise
 from .plausibility import CurrentSumCheck, SensorIssue
+from .prediction import SiblingPrediction
 from .profile import ThresholdProfile
 from .rules.base import Frame, Rule
-from .siblings import STAGE_QUANTITIES, VehicleStage
+from .siblings import PREDICTED, STAGE_QUANTITIES, VehicleStage
 from .states import MotorState
 from .vehicle_check import VehicleCheck, VehicleFit, apply_vehicle_fit
 
@@ -252,20 +253,32 @@ def vehicle_stage(
 ) -> VehicleStage | None:
     """The vehicle stage of ``motors`` (:mod:`.siblings`), with what it takes across them: the torque
     where a motor is judged against its siblings' (its noise was measured so), the deviations' live
-    noise where ``profile`` grows its bands as the siblings run (``conditions_siblings``); None: neither,
-    no stage. Motors not in ``motors`` join the stage when their samples come (:mod:`.siblings`)."""
+    noise where ``profile`` grows its bands as the siblings run (``conditions_siblings``), the speed
+    deviation where it judges the speed against the siblings' prediction (``speed_against_siblings``) and
+    the noise gives their covariance (:mod:`.prediction`; a sibling departing by more than the sequential
+    test's reference σ is left out of the others'); None: none of them, no stage. Motors not in
+    ``motors`` join the stage when their samples come (:mod:`.siblings`)."""
     quantities: list[str] = []
+    prediction = None
     if noise:
         if any(n.torque_vs_siblings is not None for n in noise.values()):
             quantities.append("torque_residual_nm")
         if profile.grows_as_siblings:
             quantities += ["live_z2_speed", "live_z2_current"]
+        if profile.speed_against_siblings > 0:
+            prediction = SiblingPrediction.of(
+                {m: n.speed_covariance for m, n in noise.items()},
+                {m: n.speed_lagged_covariance for m, n in noise.items()},
+                profile.detection.reference_sigmas,
+            )
+            if prediction is not None:
+                quantities.append(PREDICTED)
     if not quantities:
         return None
     # the torque against siblings at its own speed, within the margin the model is trusted beyond its
     # identified speeds (siblings.py, "Beyond the identified speeds")
     alike = {"torque_residual_nm": profile.range_margin} if profile.range_margin > 0 else {}
-    return VehicleStage([int(m) for m in motors], tuple(quantities), alike=alike)
+    return VehicleStage([int(m) for m in motors], tuple(quantities), alike=alike, prediction=prediction)
 
 
 def run_vehicle_stage(
@@ -307,8 +320,8 @@ def run_vehicle_stage(
             counts,
             stacked("low_pass_s"),
             # each sample's model speed, and whether its motor's model was identified there
-            stacked("omega_model_rad_s") if stage.alike else None,
-            stacked("within_identified_speeds", False) if stage.alike else None,
+            stacked("omega_model_rad_s") if stage.alike or stage.prediction else None,
+            stacked("within_identified_speeds", False) if stage.alike or stage.prediction else None,
         )
         for name, into in STAGE_QUANTITIES:
             if name not in found:
@@ -509,6 +522,7 @@ def _result_columns(frame: Frame) -> dict[str, NDArray]:
         "torque_siblings_nm": nan_unless(frame.torque_siblings_nm),
         "voltage_residual_v": nan_unless(frame.voltage_residual_v),
         "torque_slow_nm": nan_unless(frame.torque_slow_nm),
+        "speed_siblings_rad_s": nan_unless(frame.speed_siblings_rad_s),
     }
 
 
@@ -540,6 +554,7 @@ _RESULT_COLUMNS = (
     "since_step_s",
     *RESIDUAL_COLUMNS,
     "torque_slow_nm",
+    "speed_siblings_rad_s",
 )
 
 
@@ -631,6 +646,7 @@ def diagnose(
         "torque_siblings_nm": np.full(n, np.nan),
         "voltage_residual_v": np.full(n, np.nan),
         "torque_slow_nm": np.full(n, np.nan),
+        "speed_siblings_rad_s": np.full(n, np.nan),
     }
     motors = ordered["motor"]
     # each sample's pairing with its command (a log's column, telemetry/assemble.py); a table without
@@ -759,6 +775,7 @@ def diagnose(
         torque_siblings_nm=out["torque_siblings_nm"],
         voltage_residual_v=out["voltage_residual_v"],
         torque_slow_nm=out["torque_slow_nm"],
+        speed_siblings_rad_s=out["speed_siblings_rad_s"],
         vehicle_fit=vehicle_fit,
     )
     for name in ordered.names:

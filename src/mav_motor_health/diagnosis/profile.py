@@ -149,6 +149,10 @@ class ThresholdProfile:
     identification measured (:mod:`.rules.equations`; not where the ESC reports its input current, whose
     ripple moves the torque with the air). 0, the default: the tree on the speed and current deviations,
     which mix both balances' noise.
+    ``speed_against_siblings`` (s > 0, with ``noise_bands``): the speed deviation is judged less its
+    siblings' linear prediction (:mod:`.prediction`) where the vehicle file measured that difference's
+    noise and its σ is below s times the deviation's own (:mod:`.rules.against`). 0, the default: each
+    motor's speed on its own.
     """
 
     name: str
@@ -174,6 +178,7 @@ class ThresholdProfile:
     conditions_siblings: float = 0.0
     conditions_siblings_s: float = 10.0
     equation_bands: float = 0.0
+    speed_against_siblings: float = 0.0
     steady: CompareRule = field(default_factory=StepRule)
     persistence: PersistenceRule = field(default_factory=PersistenceRule)
     plausibility: PlausibilityRule = field(default_factory=PlausibilityRule)
@@ -249,6 +254,16 @@ class ThresholdProfile:
                 expected="a number of each balance's noise units between 1 and 50 (with noise_bands > 0), "
                 "or 0 (the tree on the speed and current deviations alone)",
             )
+        if not (
+            self.speed_against_siblings == 0
+            or (0 < self.speed_against_siblings <= 10 and self.noise_bands > 0)
+        ):
+            raise ConfigError(
+                f"{self.speed_against_siblings!r}",
+                key="speed_against_siblings",
+                expected="a share 0 < s <= 10 of each motor's own speed sigma below which the speed is judged "
+                "against its siblings' prediction (with noise_bands > 0), or 0 (each motor on its own)",
+            )
         if not 0 <= self.range_margin <= 10:
             raise ConfigError(
                 f"{self.range_margin!r}",
@@ -311,6 +326,7 @@ class ThresholdProfile:
         offset (bands from the vehicle's noise), the sensors, the pairing error, the bands (which may grow
         with it), the pairing's limits, the tree and its slow look, which samples count, the sequential test where
         the profile has one, persistence. Made once per profile (frozen)."""
+        from .rules.against import AgainstSiblings
         from .rules.announce import Persistence, Sequential
         from .rules.bands import Bands, LiveNoise, SiblingBands
         from .rules.equations import Equations, TorqueSlowLook
@@ -327,6 +343,7 @@ class ThresholdProfile:
             PairingGuard(self),
             *([LiveNoise(self), SiblingBands(self)] if self.grows_as_siblings else [Bands(self)]),
             PairingLimits(self),
+            *([AgainstSiblings(self)] if self.speed_against_siblings > 0 and self.noise_bands > 0 else []),
             Tree(self),
             *([Equations(self)] if self.equation_bands > 0 else []),
             SlowLook(self.slow_band_fraction, self.joint_band_sum),

@@ -39,8 +39,10 @@ conditions as the siblings run (``conditions_siblings``, :mod:`.rules.bands`): e
 square of its deviations in its identified σ, speed and current, whose siblings' median says how wide
 healthy deviations run in the air all six share right now. :class:`VehicleStage` carries every motor's
 latest value of each quantity it takes (:data:`STAGE_QUANTITIES`) and works out the references of all of
-them in one pass: the samples put in arrival order once, each motor's latest value found for every
-quantity and every sample together (on the live agent's hot path, a call of every motor's few samples).
+them in one pass (the speed deviation's, :data:`PREDICTED`, is the siblings' linear prediction instead of
+their median, where the profile asks for it: :mod:`.prediction`): the samples put in arrival order once,
+each motor's latest value found for every quantity and every sample together (on the live agent's hot
+path, a call of every motor's few samples).
 """
 
 from __future__ import annotations
@@ -51,6 +53,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from .prediction import SiblingPrediction
+
 __all__ = ["STAGE_QUANTITIES", "VehicleStage", "median_of_finite"]
 
 #: what the vehicle stage takes across motors: the frame's value each motor gives, and the frame's field
@@ -59,7 +63,12 @@ STAGE_QUANTITIES = (
     ("torque_residual_nm", "torque_siblings_nm"),
     ("live_z2_speed", "siblings_z2_speed"),
     ("live_z2_current", "siblings_z2_current"),
+    ("speed_deviation_rad_s", "speed_siblings_rad_s"),
 )
+#: the quantity whose reference is the siblings' linear prediction (:mod:`.prediction`), not their median
+PREDICTED = "speed_deviation_rad_s"
+#: the key of each motor's latest value of :data:`PREDICTED` before the instant of its latest one
+_BEFORE = " before"
 
 #: the other motors' values a reference needs: a median of three holds against one that departs (the
 #: faulty motor, or one the model is carried far beyond its identified speeds for); a quadcopter's all but one
@@ -82,6 +91,13 @@ class VehicleStage:
     #: a reference where the sibling's own lies beyond its identified range (the torque: the profile's
     #: ``range_margin``; module doc, "Beyond the identified speeds"); other quantities take every sibling
     alike: dict[str, float] = field(default_factory=dict)
+    #: the siblings' linear prediction of :data:`PREDICTED` (:mod:`.prediction`; None: not predicted)
+    prediction: SiblingPrediction | None = None
+
+    def __post_init__(self) -> None:
+        for m in () if self.prediction is None else self.prediction.motors:
+            if m not in self.motors:
+                self.motors.append(m)
 
     def references(
         self,
@@ -113,10 +129,11 @@ class VehicleStage:
         # the stream: every quantity's carried latest values first (each one a value of its own quantity
         # only, NaN for the others: it never counts as another's latest), then the call's samples
         carried = [
-            (q, m, *self.latest[name][m])
+            (q, m, *self.latest[key][m])
             for q, name in enumerate(names)
+            for key in ((name, name + _BEFORE) if name == PREDICTED else (name,))
             for m in self.motors
-            if m in self.latest.get(name, {})
+            if m in self.latest.get(key, {})
         ]
         held = len(carried)
         t = np.concatenate([[c[2] for c in carried], time_s[r_at, c_at]])
@@ -160,6 +177,18 @@ class VehicleStage:
         others = np.where(fresh, latest, np.nan)
         need = min(MEDIAN_OF, max(1, len(self.motors) - 2))  # three others, or all but one where fewer
         reference = median_of_finite(others.reshape(-1, len(self.motors)), need).reshape(len(names), -1)
+        if self.prediction is not None and PREDICTED in names:
+            q = names.index(PREDICTED)
+            # each sibling's latest before the sample's own time, never of the same instant (prediction.py,
+            # "Before, never of the same instant"): its latest at the place before the instant's first
+            first = np.searchsorted(t, t, side="left")
+            before = np.where((first > 0)[:, None], last[q][np.maximum(first - 1, 0)], -1)
+            at_before = np.maximum(before, 0)
+            fresh_before = (before >= 0) & (t[:, None] - t[at_before] <= age_limit[:, None]) & ~mine
+            if judging_alike:
+                # a sibling beyond its identified speeds: not in the pattern Σ was measured in
+                fresh_before &= trusted[at_before]
+            reference[q] = self._predicted(v[q][at_before], fresh_before, v[q], who)
         back = np.empty(t.size, dtype=np.intp)
         back[order] = k
         for q, name in enumerate(names):
@@ -173,6 +202,45 @@ class VehicleStage:
                     float(speeds[j_at]),
                     bool(trusted[j_at]),
                 )
+                if name == PREDICTED:
+                    # and its latest before that instant: what a sibling of that instant still to come
+                    # in the next call is predicted from ("Before, never of the same instant")
+                    start = int(np.searchsorted(t, t[j_at], side="left"))
+                    earlier = int(last[q, start - 1, j]) if start > 0 else -1
+                    into = self.latest.setdefault(name + _BEFORE, {})
+                    if earlier >= 0:
+                        into[self.motors[j]] = (
+                            float(t[earlier]),
+                            float(v[q, earlier]),
+                            float(speeds[earlier]),
+                            bool(trusted[earlier]),
+                        )
+                    else:
+                        into.pop(self.motors[j], None)
+        return out
+
+    def _predicted(
+        self,
+        latest: NDArray[np.float64],
+        fresh: NDArray[np.bool_],
+        own: NDArray[np.float64],
+        who: NDArray[np.intp],
+    ) -> NDArray[np.float64]:
+        """The siblings' part of each stream place's own value (:meth:`.SiblingPrediction.explained`): each
+        predicted motor's latest fresh value, the place's own motor its own; NaN at a place of a motor the
+        prediction does not know, or where one of its motors has no fresh value."""
+        assert self.prediction is not None
+        column = {m: j for j, m in enumerate(self.motors)}
+        where = np.asarray([column[m] for m in self.prediction.motors], dtype=np.intp)
+        position = np.full(len(self.motors), -1, dtype=np.intp)
+        position[where] = np.arange(where.size)
+        x = np.where(fresh[:, where], latest[:, where], np.nan)
+        p = position[who]
+        known = np.flatnonzero(p >= 0)
+        out = np.full(who.size, np.nan)
+        if known.size:
+            x[known, p[known]] = own[known]
+            out[known] = self.prediction.explained(x[known], p[known])
         return out
 
 

@@ -121,6 +121,10 @@ class Frame:
     live_z2_current: NDArray[np.float64] | None = None
     siblings_z2_speed: NDArray[np.float64] | None = None
     siblings_z2_current: NDArray[np.float64] | None = None
+    #: the siblings' linear prediction of each sample's speed deviation [rad/s] (the vehicle stage,
+    #: :mod:`..prediction`; None: not predicted, NaN: a sibling's value missing there); where the profile's
+    #: ``speed_against_siblings`` judges against it, ``omega_judged_rad_s`` has it taken off (:mod:`.against`)
+    speed_siblings_rad_s: NDArray[np.float64] | None = None
     #: the speed the motor is expected to turn at (tree rule 1)
     omega_expected_rad_s: NDArray[np.float64] = None  # type: ignore[assignment]
     #: the highest stop speed of each sample [rad/s] (tree rule 1, "The lowest input": a share of the free
@@ -211,6 +215,15 @@ class Frame:
         if self.noise is None:
             return np.ones(self.shape, dtype=bool)
         return self.noise_as_rows().in_speed_range(self.omega_model_rad_s, self.profile.range_margin)
+
+    @property
+    def speed_deviation_rad_s(self) -> NDArray[np.float64]:
+        """Each sample's speed deviation from the model as judged [rad/s], steady or not (NaN: none): what
+        the vehicle stage predicts from the siblings (:mod:`..prediction`). Every sample, not only the
+        judged ones: a sibling's latest deviation must be of the same moment, and in a manoeuvre its
+        latest judged one is from before it (on held-out world 1005, whose motors' deviations correlate by
+        ±0.97, a prediction from the latest judged ones left tails of 8 to 14 σ)."""
+        return self.omega_judged_rad_s - self.omega_model_rad_s
 
     def current_trusted(self) -> NDArray[np.bool_]:
         """Where the current may be used: a plausible sensor and a measurement."""
