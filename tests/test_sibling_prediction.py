@@ -155,6 +155,14 @@ def test_the_profile_key_is_checked_and_written_back(tmp_path) -> None:
     assert on.speed_against_siblings == 1.0
     names = [rule.name for rule in on.rules]
     assert names.index("against_siblings") == names.index("tree") - 1  # after the bands, before the tree
+    # a vehicle file without the covariances: said once, and each motor judged on its own
+    from mav_motor_health.diagnosis.noise import BandNoise
+    from mav_motor_health.diagnosis.pipeline import vehicle_stage
+
+    plain = {m: BandNoise(5.0, 0.5) for m in MOTORS}
+    with pytest.warns(UserWarning, match="speed_covariance"):
+        stage = vehicle_stage(list(MOTORS), plain, on)
+    assert stage is None or stage.prediction is None
     path.write_text(
         text.replace("speed_against_siblings = 1.0", "speed_against_siblings = -1"), encoding="utf-8"
     )

@@ -22,6 +22,7 @@ therefore announce the same states, where the agent's batches come in the order 
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -273,12 +274,28 @@ def vehicle_stage(
             )
             if prediction is not None:
                 quantities.append(PREDICTED)
+            else:
+                _warn_without_prediction(profile.name)
     if not quantities:
         return None
     # the torque against siblings at its own speed, within the margin the model is trusted beyond its
     # identified speeds (siblings.py, "Beyond the identified speeds")
     alike = {"torque_residual_nm": profile.range_margin} if profile.range_margin > 0 else {}
     return VehicleStage([int(m) for m in motors], tuple(quantities), alike=alike, prediction=prediction)
+
+
+def _warn_without_prediction(profile_name: str) -> None:
+    """Say once (Python's warnings show each place once) that a profile judging the speed against the
+    siblings' prediction has a vehicle file without what the prediction needs, and how to get it."""
+    warnings.warn(
+        f"profile {profile_name!r} judges the speed against its siblings' prediction "
+        "(speed_against_siblings), and the vehicle's noise has no noise.N.speed_covariance_M and "
+        "speed_lagged_covariance_M for three or more motors (a file written before they were measured): "
+        "each motor's speed is judged on its own; `mav-motor-health fit FLIGHT_LOG --out vehicle.toml` "
+        "measures them",
+        UserWarning,
+        stacklevel=3,
+    )
 
 
 def run_vehicle_stage(
