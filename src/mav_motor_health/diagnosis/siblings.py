@@ -194,14 +194,13 @@ class VehicleStage:
         for q, name in enumerate(names):
             out[name][r_at, c_at] = reference[q, back[held:]]
             kept = self.latest.setdefault(name, {})
+
+            def entry(i: int, q: int = q) -> tuple[float, float, float, bool]:
+                return float(t[i]), float(v[q, i]), float(speeds[i]), bool(trusted[i])
+
             for j in np.flatnonzero(have[q, -1]).tolist():
-                j_at = at[q, -1, j]
-                kept[self.motors[j]] = (
-                    float(t[j_at]),
-                    float(v[q, j_at]),
-                    float(speeds[j_at]),
-                    bool(trusted[j_at]),
-                )
+                j_at = int(at[q, -1, j])
+                kept[self.motors[j]] = entry(j_at)
                 if name == PREDICTED:
                     # and its latest before that instant: what a sibling of that instant still to come
                     # in the next call is predicted from ("Before, never of the same instant")
@@ -209,12 +208,7 @@ class VehicleStage:
                     earlier = int(last[q, start - 1, j]) if start > 0 else -1
                     into = self.latest.setdefault(name + _BEFORE, {})
                     if earlier >= 0:
-                        into[self.motors[j]] = (
-                            float(t[earlier]),
-                            float(v[q, earlier]),
-                            float(speeds[earlier]),
-                            bool(trusted[earlier]),
-                        )
+                        into[self.motors[j]] = entry(earlier)
                     else:
                         into.pop(self.motors[j], None)
         return out
