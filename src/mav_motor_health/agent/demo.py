@@ -11,6 +11,7 @@ import asyncio
 import contextlib
 import logging
 import socket
+import time
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -47,9 +48,19 @@ def parse_fault(text: str) -> FaultPlan:
     return plan
 
 
-def demo_summary(agent: Any, scenario: str, fault: FaultPlan | None, flown_s: float) -> str:
-    """What was injected, what the agent announced and how soon, and where to go from here."""
+def demo_summary(
+    agent: Any,
+    scenario: str,
+    fault: FaultPlan | None,
+    flown_s: float,
+    injected_at_s: float | None = None,
+) -> str:
+    """What was injected, what the agent announced and how soon, and where to go from here.
+    ``injected_at_s``: when the fault was injected, on the agent's clock (its link's, monotonic); None:
+    taken as the fault's simulated time after the agent's first state, which is off by however far the
+    simulation fell behind real time before the fault (a machine busy at the start)."""
     origin = agent.changes[0].time_s if agent.changes else 0.0  # the agent's clock at the first state
+    onset = None if fault is None else (origin + fault.at_s if injected_at_s is None else injected_at_s)
     faults = [c for c in agent.changes if c.state.is_fault]
     lines = ["", f"demo finished: {flown_s:.0f} s of the simulated flight '{scenario}'"]
     if fault is None:
@@ -66,8 +77,8 @@ def demo_summary(agent: Any, scenario: str, fault: FaultPlan | None, flown_s: fl
             ),
             None,
         )
-    if found is not None and fault is not None:
-        delay = found.time_s - origin - fault.at_s
+    if found is not None and fault is not None and onset is not None:
+        delay = found.time_s - onset
         lines.append(
             f"  announced: motor {found.motor} {found.state.label} ({found.state.description}) "
             f"{delay:.2f} s after the injection"
@@ -116,18 +127,21 @@ async def run_with_sim(
     vehicle = SimVehicle(load_scenario(scenario), f"udpout:127.0.0.1:{port}")
     await asyncio.to_thread(vehicle.start)
 
+    injected: dict[str, float] = {}
+
     async def inject_later() -> None:
         if fault is None:
             return
         while vehicle.sim_time_s < fault.at_s:
             await asyncio.sleep(0.05)
+        injected["at_s"] = time.monotonic()  # the link's clock (agent/link.py), the same process's
         vehicle.inject(fault.kind, fault.motor)
         log.info("simulator: %s injected on motor %d at %.1f s", fault.kind, fault.motor, fault.at_s)
 
     end_s = load_scenario(scenario).duration_s
 
     def report(agent: Any) -> str:
-        return demo_summary(agent, scenario, fault, vehicle.sim_time_s)
+        return demo_summary(agent, scenario, fault, vehicle.sim_time_s, injected.get("at_s"))
 
     injector = asyncio.ensure_future(inject_later())
     try:
