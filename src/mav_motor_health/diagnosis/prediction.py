@@ -148,7 +148,7 @@ class SiblingPrediction:
     def explained(self, deviations: NDArray[np.float64], own: NDArray[np.intp]) -> NDArray[np.float64]:
         """The siblings' part of each row's own deviation: ``deviations`` rows × motors (in
         :attr:`motors` order, centred: the model shifted by each motor's offset), ``own`` each row's own
-        column. NaN where any motor's value is missing."""
+        column. NaN where any motor's value is missing, or where two siblings depart (module doc)."""
         x = np.asarray(deviations, dtype=float)
         rows = np.arange(x.shape[0])
         complete = np.isfinite(x).all(axis=1)
