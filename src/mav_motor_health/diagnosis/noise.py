@@ -696,9 +696,13 @@ class BandNoise(_ConditionsMath):
     @property
     def after_step_table(self) -> NDArray[np.float64]:  # type: ignore[override]
         """:attr:`after_step` as one row of :data:`AFTER_STEP_BINS` bins (NaN: not measured)."""
-        if len(self.after_step) != AFTER_STEP_BINS:
-            return np.full((1, AFTER_STEP_BINS), np.nan)
-        return np.asarray(self.after_step, dtype=float).reshape(1, AFTER_STEP_BINS)
+        return _bins_row(self.after_step)
+
+    @property
+    def against_after_step_table(self) -> NDArray[np.float64]:
+        """:attr:`speed_vs_siblings_after_step` as one row of :data:`AFTER_STEP_BINS` bins (NaN: not
+        measured)."""
+        return _bins_row(self.speed_vs_siblings_after_step)
 
     @property
     def torque_judged(self) -> EquationNoise | None:
@@ -796,6 +800,14 @@ class BandNoise(_ConditionsMath):
         )
 
 
+def _bins_row(widening: tuple[float, ...]) -> NDArray[np.float64]:
+    """A widening per bin of the wait after a step as one row of :data:`AFTER_STEP_BINS` (NaN: not
+    measured, or not one number per bin)."""
+    if len(widening) != AFTER_STEP_BINS:
+        return np.full((1, AFTER_STEP_BINS), np.nan)
+    return np.asarray(widening, dtype=float).reshape(1, AFTER_STEP_BINS)
+
+
 def _conditions(
     activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
@@ -877,6 +889,36 @@ def _fit_growth(
     return s0, math.sqrt(coefficients[1]), math.sqrt(coefficients[2]) if paired else 0.0
 
 
+@dataclass(frozen=True)
+class _Flights:
+    """Diagnosed flights' columns laid end to end, as the noise is measured over them."""
+
+    tables: Sequence[TelemetryTable]
+
+    def column(self, name: str, dtype: type = float) -> NDArray:
+        if not self.tables:
+            return np.zeros(0)
+        return np.concatenate([np.asarray(d[name], dtype=dtype) for d in self.tables])
+
+    def commanded(self, min_command: float) -> NDArray[np.bool_]:
+        """Where the command is at least ``min_command`` (everywhere where a flight has no command)."""
+        usable = np.ones(self.column("steady", bool).shape, dtype=bool)
+        if min_command > 0 and all("throttle" in d.names for d in self.tables):
+            usable &= self.column("throttle") >= min_command
+        return usable
+
+    def activity(self) -> NDArray[np.float64]:
+        """The input activity [V], 0 where not measured."""
+        return np.nan_to_num(self.column("input_activity_v"))
+
+    def pairing(self) -> NDArray[np.float64] | None:
+        """The pairing error of logs that pair commands loosely [rad/s] (None: a source that pairs
+        exactly)."""
+        if not all("pairing_error_rad_s" in d.names for d in self.tables):
+            return None
+        return np.nan_to_num(self.column("pairing_error_rad_s"))
+
+
 def measure_band_noise(
     diagnosed: TelemetryTable | Sequence[TelemetryTable],
     min_command: float = 0.0,
@@ -892,25 +934,16 @@ def measure_band_noise(
     balance is read through the duty and marked so (not judged: rules/equations.py, "An input current's
     ripple")."""
     tables = [diagnosed] if isinstance(diagnosed, TelemetryTable) else list(diagnosed)
-
-    def column(name: str, dtype: type = float) -> NDArray:
-        return np.concatenate([np.asarray(d[name], dtype=dtype) for d in tables]) if tables else np.zeros(0)
-
+    flights = _Flights(tables)
+    column = flights.column
     steady = column("steady", bool)
-    usable = np.ones(steady.shape, dtype=bool)  # commanded above idle, a deviation to measure
-    if min_command > 0 and all("throttle" in d.names for d in tables):
-        usable &= column("throttle") >= min_command
+    usable = flights.commanded(min_command)  # commanded above idle, a deviation to measure
     dw = column("omega_judged_rad_s") - column("omega_model_rad_s")
     di = column("current_judged_a") - column("current_model_a")
     current = column("current_a")
     omega_model = column("omega_model_rad_s")
-    activity = np.nan_to_num(column("input_activity_v"))
-    # the pairing error of a log that pairs commands loosely (none: a source that pairs exactly)
-    pairing = (
-        np.nan_to_num(column("pairing_error_rad_s"))
-        if all("pairing_error_rad_s" in d.names for d in tables)
-        else None
-    )
+    activity = flights.activity()
+    pairing = flights.pairing()
     usable &= np.isfinite(dw)
     judged = steady & usable
     # the two balances apart (module doc, "Each equation's own noise"; none: a rule without them)
@@ -1028,21 +1061,14 @@ def measure_speed_vs_siblings(
     if not tables:
         return out, ()
 
-    def column(name: str, dtype: type = float) -> NDArray:
-        return np.concatenate([np.asarray(d[name], dtype=dtype) for d in tables])
-
+    flights = _Flights(tables)
+    column = flights.column
     steady = column("steady", bool)
-    usable = np.ones(steady.shape, dtype=bool)
-    if min_command > 0 and all("throttle" in d.names for d in tables):
-        usable &= column("throttle") >= min_command
+    usable = flights.commanded(min_command)
     against = column("omega_judged_rad_s") - column("omega_model_rad_s") - column("speed_siblings_rad_s")
     usable &= np.isfinite(against)
-    activity = np.nan_to_num(column("input_activity_v"))
-    pairing = (
-        np.nan_to_num(column("pairing_error_rad_s"))
-        if all("pairing_error_rad_s" in d.names for d in tables)
-        else None
-    )
+    activity = flights.activity()
+    pairing = flights.pairing()
     motors = column("motor", np.int64)
     for motor in np.unique(motors):
         found = _equation_noise(against, steady & usable & (motors == motor), activity, pairing)

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from ..noise import AFTER_STEP_BINS, EquationNoise, after_step_factor
+from ..noise import EquationNoise, after_step_factor
 from .base import Frame, Rule
 
 if TYPE_CHECKING:
@@ -41,7 +41,7 @@ class AgainstSiblings(Rule):
         against = [n.speed_vs_siblings or EquationNoise(np.nan) for n in noise]
         if not any(np.isfinite(e.sigma) for e in against):
             return carries
-        rows, width = frame.shape
+        width = frame.shape[1]
         a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
         e = frame.pairing_error_rad_s
         if frame.sigma_speed_rad_s is None or frame.sigma_current_a is None:
@@ -56,15 +56,7 @@ class AgainstSiblings(Rule):
         )
         if frame.since_step_s is not None:
             # after a step each is wider by its own measured widening (the deviation's is in the band)
-            table = np.array(
-                [
-                    n.speed_vs_siblings_after_step
-                    if len(n.speed_vs_siblings_after_step) == AFTER_STEP_BINS
-                    else (np.nan,) * AFTER_STEP_BINS
-                    for n in noise
-                ],
-                dtype=float,
-            ).reshape(rows, AFTER_STEP_BINS)
+            table = np.concatenate([n.against_after_step_table for n in noise])
             settle_s = float(getattr(self.profile.steady, "settle_s", 0.0))
             sigma = sigma * after_step_factor(table, frame.since_step_s, settle_s)
             if frame.after_step_factor is not None:
