@@ -16,12 +16,21 @@ from mav_motor_health.config import dump_vehicle_params, load_motor_params, load
 from mav_motor_health.diagnosis.detection import DIRECTIONS, equation_evidence
 from mav_motor_health.diagnosis.noise import BandNoise, EquationNoise, band_noise_of, measure_band_noise
 from mav_motor_health.diagnosis.pipeline import diagnose
+from mav_motor_health.diagnosis.rules.base import Frame
+from mav_motor_health.diagnosis.rules.equations import Equations
 from mav_motor_health.diagnosis.states import MotorState
 from mav_motor_health.evaluation.campaign import FlightCase, run_flights
 from mav_motor_health.model.vehicle import VehicleParams
 from mav_motor_health.telemetry.table import TelemetryTable
 
 FAULTS = ("F1.1", "F3.1", "F4.1")
+
+
+def _torque_profile():
+    """The shipped vehicle profile without the speed against its siblings' prediction: this file's noise is
+    measured by measure_band_noise alone, without the siblings' covariances that prediction needs (a test
+    of its own: tests/test_sibling_prediction.py)."""
+    return dataclasses.replace(load_profile("flight_vehicle"), speed_against_siblings=0.0)
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +58,7 @@ def flights():
 def noise(motor, flights) -> dict[int, BandNoise]:
     """Each motor's noise measured on the identification flight, as ``fit`` measures it: the profile's own
     rule run with no band at all."""
-    profile = load_profile("flight_vehicle")
+    profile = _torque_profile()
     unbounded = {m: BandNoise.unbounded() for m in range(1, 7)}
     diagnosed = diagnose(flights["identification"].table, motor, profile, unbounded)
     settle_s = float(getattr(profile.steady, "settle_s", 0.0))
@@ -112,7 +121,7 @@ def test_identification_measures_each_balances_noise_and_the_vehicle_file_carrie
 
 
 def test_friction_and_a_lighter_propeller_are_named_in_the_torque_balance(motor, flights, noise) -> None:
-    profile = load_profile("flight_vehicle")
+    profile = _torque_profile()
     assert profile.equation_bands > 0
     deviations_only = dataclasses.replace(profile, equation_bands=0.0)
     healthy = diagnose(flights["healthy"].table, motor, profile, noise)
@@ -146,7 +155,7 @@ def test_friction_and_a_lighter_propeller_are_named_in_the_torque_balance(motor,
 
 
 def test_a_vehicle_file_without_the_torques_noise_is_judged_as_before_and_says_so(motor, flights, noise):
-    profile = load_profile("flight_vehicle")
+    profile = _torque_profile()
     older = {
         m: dataclasses.replace(n, torque=None, voltage=None, torque_vs_siblings=None)
         for m, n in noise.items()
@@ -167,7 +176,7 @@ def test_a_vehicle_file_without_the_torques_noise_is_judged_as_before_and_says_s
 
 
 def test_a_torque_read_through_the_duty_is_not_judged_the_deviations_judge(motor, flights, noise) -> None:
-    profile = load_profile("flight_vehicle")
+    profile = _torque_profile()
     table = flights["F1.1"].table
     before = diagnose(table, motor, dataclasses.replace(profile, equation_bands=0.0), noise)
     # a file without the torque against its siblings (before .siblings), its torque through the duty
@@ -191,7 +200,7 @@ def test_a_torque_read_through_the_duty_is_not_judged_the_deviations_judge(motor
 
 
 def test_tiny_torque_noise_makes_healthy_motors_faulty_the_bands_bite(motor, flights, noise) -> None:
-    profile = load_profile("flight_vehicle")
+    profile = _torque_profile()
     table = flights["healthy"].table
     tight = {
         m: dataclasses.replace(
@@ -236,7 +245,7 @@ def test_a_current_every_motor_gains_alike_is_judged_against_the_siblings_not_na
 ) -> None:
     """An input current's ripple adds about the same current to every motor (diagnosis/siblings.py): a
     torque judged on its own names every motor F1.1, judged against its siblings none."""
-    profile = load_profile("flight_vehicle")
+    profile = _torque_profile()
     table = flights["healthy"].table
     n = noise[1]
     assert n.torque is not None and n.torque_vs_siblings is not None  # identification measured both
@@ -269,7 +278,7 @@ def test_siblings_beyond_their_identified_speeds_count_only_at_the_motors_own_sp
     identified range (diagnosis/siblings.py): with every motor's range set below the flight, a reference
     stays only where three siblings turn within ``range_margin`` of the motor's speed, so some samples of
     the moderate flight lose theirs; with the ranges measured, none does."""
-    profile = load_profile("flight_vehicle")
+    profile = _torque_profile()
     table = flights["healthy"].table
     slow = {"omega_low_rad_s": 50.0, "omega_high_rad_s": 50.0}
     beyond = {m: dataclasses.replace(v, **slow) for m, v in noise.items()}
@@ -278,3 +287,51 @@ def test_siblings_beyond_their_identified_speeds_count_only_at_the_motors_own_sp
     kept = np.isfinite(carried["torque_siblings_nm"])
     assert had.mean() > 0.9 and not (kept & ~had).any()
     assert 0.005 < (had & ~kept).sum() / had.sum() < 0.5  # some lost: siblings more than 10 % apart
+
+
+def _judged_after_f41(motor, noise: BandNoise, depth: float, torque_nm: float, voltage_v: float = 0.0):
+    """Two samples of one motor that the tree read F4.1 ``depth`` bands deep, with the torque band 0.01
+    N·m, the torque and voltage residuals given, after the torque balance's rule."""
+    profile = _torque_profile()
+    ones = np.ones((1, 2))
+    frame = Frame(motor, profile, np.array([[0.0, 0.02]]), 8 * ones, 800 * ones, 4 * ones, [2], noise=[noise])
+    frame.sensor_flags = np.zeros((1, 2), dtype=np.int16)
+    frame.state = np.full((1, 2), MotorState.F4_1, dtype=np.int8)
+    frame.depth = depth * ones
+    frame.torque_band_nm = 0.01 * ones
+    frame.torque_residual_nm = torque_nm * ones
+    frame.voltage_residual_v = voltage_v * ones
+    Equations(profile).judge(frame, [Equations(profile).new_carry()])
+    return frame
+
+
+def test_a_torque_above_its_band_names_friction_even_where_the_tree_reads_an_open_transistor_deeper(
+    motor,
+) -> None:
+    # the tree read F4.1, three bands deep (friction's lower speed against a narrowed speed band); the
+    # torque departs two bands: above, that is friction (an open transistor takes voltage, not torque);
+    # below, it may be the open transistor's lower current, and the deeper F4.1 stands
+    n, band = _torque_profile().equation_bands, 0.01
+    noise = BandNoise(5.0, 0.3, torque=EquationNoise(band / n))
+    for sign, expected in ((1.0, MotorState.F1_1), (-1.0, MotorState.F4_1)):
+        frame = _judged_after_f41(motor, noise, 3.0, sign * 2 * band)
+        assert np.all(frame.state == expected), sign
+        np.testing.assert_allclose(frame.z_torque, sign * 2 * n)
+        np.testing.assert_allclose(frame.depth, 2.0 if expected == MotorState.F1_1 else 3.0)
+
+
+def test_a_slower_motor_is_friction_where_its_torque_departs_more_than_its_voltage_balance(motor) -> None:
+    # the tree read F4.1 (slower, the current not above its band); the torque within its band but 3 σ
+    # up: friction where the voltage balance departs less (torque added), an open transistor where it
+    # departs more (voltage lost); a vehicle file without the voltage balance's noise: the tree's F4.1
+    n, band, sigma_v = _torque_profile().equation_bands, 0.01, 0.05
+    cases = (
+        (EquationNoise(sigma_v, offset=0.1), 0.1 + 1.0 * sigma_v, MotorState.F1_1),
+        (EquationNoise(sigma_v, offset=0.1), 0.1 + 5.0 * sigma_v, MotorState.F4_1),
+        (None, 0.0, MotorState.F4_1),
+    )
+    for voltage, residual_v, expected in cases:
+        noise = BandNoise(5.0, 0.3, torque=EquationNoise(band / n), voltage=voltage)
+        frame = _judged_after_f41(motor, noise, 1.5, 3.0 * (band / n), residual_v)
+        assert np.all(frame.state == expected), (voltage, residual_v)
+        np.testing.assert_allclose(frame.depth, 1.5)  # the tree's depth, whichever the name
