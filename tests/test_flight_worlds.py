@@ -232,6 +232,9 @@ def test_once_announced_an_open_transistor_reads_on_the_samples_its_departure_ho
     # without the slow look (which names this flight's transistor on most samples by itself: the next
     # test), to see what the hold reads
     shipped = dataclasses.replace(shipped, slow_band_fraction=0.0)
+    # and without the siblings' prediction (which names it against a narrower band from the start:
+    # tests/test_sibling_prediction.py)
+    shipped = dataclasses.replace(shipped, speed_against_siblings=0.0)
     off = dataclasses.replace(shipped, detection=dataclasses.replace(shipped.detection, hold_sigmas=0.0))
     folder = tmp_path / "flights"
     folder.mkdir()
@@ -317,6 +320,9 @@ def test_the_slow_look_judged_in_its_own_noise_names_a_small_open_transistor(tmp
     # without the hold (which names this flight's transistor on most samples once it is announced), to
     # see what the slow look reads by itself
     shipped = dataclasses.replace(shipped, detection=dataclasses.replace(shipped.detection, hold_sigmas=0.0))
+    # and without the siblings' prediction (which names it against a narrower band from the start:
+    # tests/test_sibling_prediction.py)
+    shipped = dataclasses.replace(shipped, speed_against_siblings=0.0)
     off = dataclasses.replace(shipped, slow_band_fraction=0.0)
     folder = tmp_path / "flights"
     folder.mkdir()

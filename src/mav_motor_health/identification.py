@@ -152,7 +152,8 @@ def with_band_noise(
 ) -> VehicleParams:
     """The vehicle with each motor's band noise (:mod:`.diagnosis.noise`) added to its ``noise``: the
     flight rule of ``profile`` run over its healthy flights with the model identification found."""
-    profile_rules = load_profile(profile)
+    # each motor on its own first: the siblings' prediction needs the covariances this pass measures
+    profile_rules = replace(load_profile(profile), speed_against_siblings=0.0)
     # an ESC that reports its input current: the torque balance carries the duty's ripple (noise.py), and
     # the rule reads the torque through the duty (model/balance.py)
     input_current = vehicle.current is not None and vehicle.current.side == "input"

@@ -34,7 +34,7 @@ from ..model.params import MotorParams, MotorRows, same_type
 from ..telemetry.table import TelemetryTable
 from .noise import BandNoise, require_noise
 from .plausibility import CurrentSumCheck, SensorIssue
-from .prediction import SiblingPrediction
+from .prediction import MIN_COVARIANCE_SAMPLES, SiblingPrediction
 from .profile import ThresholdProfile
 from .rules.base import Frame, Rule
 from .siblings import PREDICTED, STAGE_QUANTITIES, VehicleStage
@@ -275,7 +275,7 @@ def vehicle_stage(
             if prediction is not None:
                 quantities.append(PREDICTED)
             else:
-                _warn_without_prediction(profile.name)
+                _warn_without_prediction(profile)
     if not quantities:
         return None
     # the torque against siblings at its own speed, within the margin the model is trusted beyond its
@@ -284,15 +284,18 @@ def vehicle_stage(
     return VehicleStage([int(m) for m in motors], tuple(quantities), alike=alike, prediction=prediction)
 
 
-def _warn_without_prediction(profile_name: str) -> None:
+def _warn_without_prediction(profile: ThresholdProfile) -> None:
     """Say once (Python's warnings show each place once) that a profile judging the speed against the
     siblings' prediction has a vehicle file without what the prediction needs, and how to get it."""
+    tau_s = float(getattr(profile.steady, "residual_tau_s", 0.0))
     warnings.warn(
-        f"profile {profile_name!r} judges the speed against its siblings' prediction "
+        f"profile {profile.name!r} judges the speed against its siblings' prediction "
         "(speed_against_siblings), and the vehicle's noise has no noise.N.speed_covariance_M and "
-        "speed_lagged_covariance_M for three or more motors (a file written before they were measured): "
+        "speed_lagged_covariance_M for three or more motors (a file written before they were measured, or "
+        "an identification flight too short or reporting too slowly to measure them: each motor needs "
+        f"{MIN_COVARIANCE_SAMPLES} judged samples with every sibling's report of the {tau_s:g} s before): "
         "each motor's speed is judged on its own; `mav-motor-health fit FLIGHT_LOG --out vehicle.toml` "
-        "measures them",
+        "measures them where the flight allows",
         UserWarning,
         stacklevel=3,
     )

@@ -180,15 +180,17 @@ def measure_speed_covariance(
     covariance with its siblings' values. Each motor's rows as (motor, covariance) pairs, the two apart;
     both empty where a motor has fewer than :data:`MIN_COVARIANCE_SAMPLES` samples with every sibling's
     value, or the vehicle fewer than :data:`MIN_MOTORS` motors."""
-    motors: list[int] = sorted({int(m) for d in diagnosed for m in np.unique(d["motor"])})
+    judged_of = [_judged(d, min_command) for d in diagnosed]
+    # the motors judged at all: an output the log reports but nothing turns (a hexacopter's ESC slots 7
+    # and 8, all zeros) is no sibling, and its empty rows would leave every motor without a covariance
+    motors: list[int] = sorted(
+        {int(m) for d, judged in zip(diagnosed, judged_of) for m in np.unique(np.asarray(d["motor"])[judged])}
+    )
     n = len(motors)
     if n < MIN_MOTORS:
         return {}, {}
     before: dict[int, list[NDArray[np.float64]]] = {m: [] for m in motors}
-    for d in diagnosed:
-        judged = np.asarray(d["steady"], dtype=bool)
-        if min_command > 0 and "throttle" in d.names:
-            judged &= np.asarray(d["throttle"], dtype=float) >= min_command
+    for d, judged in zip(diagnosed, judged_of):
         deviation = np.asarray(d["omega_judged_rad_s"]) - np.asarray(d["omega_model_rad_s"])
         time_s, motor = np.asarray(d["time_s"], dtype=float), np.asarray(d["motor"])
         series = {}
@@ -223,6 +225,14 @@ def measure_speed_covariance(
         lag = _covariance(x[:, [i]], x)[0]
         lagged[m] = tuple((o, float(lag[j])) for j, o in enumerate(motors))
     return covariance, lagged
+
+
+def _judged(diagnosed: TelemetryTable, min_command: float) -> NDArray[np.bool_]:
+    """The samples a diagnosed flight judged (steady) with a command of at least ``min_command``."""
+    judged = np.asarray(diagnosed["steady"], dtype=bool)
+    if min_command > 0 and "throttle" in diagnosed.names:
+        judged &= np.asarray(diagnosed["throttle"], dtype=float) >= min_command
+    return judged
 
 
 def _complete(rows: NDArray[np.float64]) -> NDArray[np.float64]:

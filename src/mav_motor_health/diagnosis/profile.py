@@ -151,8 +151,8 @@ class ThresholdProfile:
     which mix both balances' noise.
     ``speed_against_siblings`` (s > 0, with ``noise_bands``): the speed deviation is judged less its
     siblings' linear prediction (:mod:`.prediction`) where the vehicle file measured that difference's
-    noise and its σ is below s times the deviation's own (:mod:`.rules.against`). 0, the default: each
-    motor's speed on its own.
+    noise and its σ is below s times the deviation's own (:mod:`.rules.against`; the shipped
+    ``flight_vehicle``: 1, "where the narrower"). 0, the default: each motor's speed on its own.
     """
 
     name: str
