@@ -20,9 +20,10 @@ and after a step as the deviations' bands are (:mod:`.bands`):
   torque too). Above, an open transistor is no reading: it takes voltage from the motor, not torque, and
   on the open-transistor flights probed (held-out worlds 1003, 1011, 1014 in calm and moderate air;
   development worlds 3 and 6) the faulty motor's torque stayed within about 1 σ of its model, 10th to
-  90th percentile (docs/flight.md, "Friction above the torque's band is not an open transistor"). Where the speed is
-  judged against its siblings (:mod:`.against`), friction's lower speed crosses its narrowed band first
-  and the tree reads F4.1, deeper than the torque; the torque above its band still names friction;
+  90th percentile (docs/flight.md, "Friction above the torque's band is not an open transistor"). Where
+  the speed is judged against its siblings (:mod:`.against`), friction's lower speed crosses its narrowed
+  band first and the tree reads F4.1, deeper than the torque; the torque above its band still names
+  friction;
 * a sample the tree named F4.1 (slower, the current not above its band), whose torque stays within its
   band: friction slows a motor too, by torque added where an open transistor loses voltage. So it is F1.1
   where the torque departs up by more of its own σ than the voltage balance does (``z_T > max(z_V, 0)``;
