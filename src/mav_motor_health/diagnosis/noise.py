@@ -464,6 +464,11 @@ class NoiseRows(_ConditionsMath):
     #: the torque noise each motor is judged with (:attr:`BandNoise.torque_judged`): σ₀, its growth with
     #: the activity and with the pairing, one row per motor (NaN: not judged in the torque)
     torque_table: NDArray[np.float64]
+    #: the voltage balance's noise (:attr:`BandNoise.voltage`) and the speed's less its siblings' prediction
+    #: (:attr:`BandNoise.speed_vs_siblings`): σ₀, its growth with the activity and with the pairing, and the
+    #: offset, one row per motor (NaN: not measured)
+    voltage_table: NDArray[np.float64]
+    against_table: NDArray[np.float64]
     #: the slow look's noise (:attr:`BandNoise.slow_speed`, :attr:`BandNoise.slow_current`,
     #: :attr:`BandNoise.slow_torque`): σ₀, its growth with the activity and with the pairing, and the
     #: offset, of the speed, the current then the torque, one row per motor (NaN: not measured)
@@ -545,9 +550,26 @@ class NoiseRows(_ConditionsMath):
     ) -> NDArray[np.float64]:
         """Each row's torque σ(a, e) at its samples, what its motor's :attr:`BandNoise.torque_judged`
         gives (:meth:`EquationNoise.sigmas`); NaN on the rows of motors not judged in the torque."""
-        a, e = _conditions(activity_v, pairing_error_rad_s)
-        sigma, per_activity, per_pairing = (self.torque_table[:, k : k + 1] for k in range(3))
-        return np.where(np.isfinite(sigma), _grown(sigma, per_activity, per_pairing, a, e), np.nan)
+        return _equation_sigmas(self.torque_table, activity_v, pairing_error_rad_s)
+
+    def voltage_sigmas(
+        self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
+        """Each row's voltage balance σ(a, e) at its samples (:meth:`EquationNoise.sigmas` of
+        :attr:`BandNoise.voltage`); NaN on the rows of motors without it."""
+        return _equation_sigmas(self.voltage_table, activity_v, pairing_error_rad_s)
+
+    @property
+    def voltage_offset(self) -> NDArray[np.float64]:
+        """Each row's voltage balance offset, a column (NaN: not measured)."""
+        return self.voltage_table[:, 3:4]
+
+    def against_sigmas(
+        self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
+        """Each row's σ(a, e) of the speed less its siblings' prediction at its samples
+        (:attr:`BandNoise.speed_vs_siblings`); NaN on the rows of motors without it."""
+        return _equation_sigmas(self.against_table, activity_v, pairing_error_rad_s)
 
     @classmethod
     def of(cls, noise: Sequence[BandNoise]) -> NoiseRows:
@@ -582,15 +604,46 @@ class NoiseRows(_ConditionsMath):
             ],
             dtype=float,
         ).reshape(-1, 12)
-        for column in (*columns.values(), table, torque, slow):
+        voltage = _equation_table([n.voltage for n in noise])
+        against = _equation_table([n.speed_vs_siblings for n in noise])
+        for column in (*columns.values(), table, torque, slow, voltage, against):
             column.flags.writeable = False
-        rows = cls(**columns, after_step_table=table, torque_table=torque, slow_table=slow)
+        rows = cls(
+            **columns,
+            after_step_table=table,
+            torque_table=torque,
+            voltage_table=voltage,
+            against_table=against,
+            slow_table=slow,
+        )
         if len(_ROWS_MADE) >= _ROWS_HELD:
             _ROWS_MADE.clear()
         # the noise itself is held too: while it is, no other object can take its id, so the same ids are
         # the same noise
         _ROWS_MADE[key] = (tuple(noise), rows)
         return rows
+
+
+def _equation_table(equations: Sequence[EquationNoise | None]) -> NDArray[np.float64]:
+    """σ₀, its growth with the activity and with the pairing, and the offset of each row's balance (NaN
+    where it has none), one row per motor."""
+    return np.array(
+        [
+            (q.sigma, q.per_activity, q.per_pairing, q.offset) if q is not None else (np.nan,) * 4
+            for q in equations
+        ],
+        dtype=float,
+    ).reshape(-1, 4)
+
+
+def _equation_sigmas(
+    table: NDArray[np.float64], activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None
+) -> NDArray[np.float64]:
+    """Each row's σ(a, e) of the balance in ``table`` (:func:`_equation_table`) at its samples, what its
+    :meth:`EquationNoise.sigmas` gives; NaN on the rows without it."""
+    a, e = _conditions(activity_v, pairing_error_rad_s)
+    sigma, per_activity, per_pairing = (table[:, k : k + 1] for k in range(3))
+    return np.where(np.isfinite(sigma), _grown(sigma, per_activity, per_pairing, a, e), np.nan)
 
 
 #: the rows made lately, by the ids of the noise they were made of (:meth:`NoiseRows.of`)

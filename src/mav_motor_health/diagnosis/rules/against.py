@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from ..noise import EquationNoise, after_step_factor
+from ..noise import after_step_factor
 from .base import Frame, Rule
 
 if TYPE_CHECKING:
@@ -38,22 +38,16 @@ class AgainstSiblings(Rule):
         explained, noise = frame.speed_siblings_rad_s, frame.noise
         if explained is None or noise is None:
             return carries
-        against = [n.speed_vs_siblings or EquationNoise(np.nan) for n in noise]
-        if not any(np.isfinite(e.sigma) for e in against):
+        if not any(n.speed_vs_siblings is not None and np.isfinite(n.speed_vs_siblings.sigma) for n in noise):
             return carries
-        width = frame.shape[1]
         a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
         e = frame.pairing_error_rad_s
+        rows = frame.noise_as_rows()
         if frame.sigma_speed_rad_s is None or frame.sigma_current_a is None:
-            frame.sigma_speed_rad_s, frame.sigma_current_a = frame.noise_as_rows().sigmas(a, e)
+            frame.sigma_speed_rad_s, frame.sigma_current_a = rows.sigmas(a, e)
         identified = frame.sigma_speed_rad_s
         own = identified
-        sigma = np.vstack(
-            [
-                np.broadcast_to(n.sigmas(a[r], None if e is None else e[r]), (width,))
-                for r, n in enumerate(against)
-            ]
-        )
+        sigma = np.broadcast_to(rows.against_sigmas(a, e), frame.shape)
         if frame.since_step_s is not None:
             # after a step each is wider by its own measured widening (the deviation's is in the band)
             table = np.concatenate([n.against_after_step_table for n in noise])

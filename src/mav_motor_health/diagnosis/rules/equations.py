@@ -162,25 +162,15 @@ class Equations(Rule):
         torque's band is (beyond the identified conditions, after a step); NaN on a motor whose noise has
         no voltage balance's; None where none has, or the balance rule wrote no voltage residual."""
         noise, residual = frame.noise or (), frame.voltage_residual_v
-        voltage = [m.voltage for m in noise]
-        if residual is None or all(v is None for v in voltage):
+        if residual is None or all(m.voltage is None for m in noise):
             return None
         a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
         e = frame.pairing_error_rad_s
-        width = frame.shape[1]
-        sigma = np.vstack(
-            [
-                np.broadcast_to(
-                    math.nan if v is None else v.sigmas(a[r], None if e is None else e[r]), (width,)
-                )
-                for r, v in enumerate(voltage)
-            ]
-        )
-        offset = np.array([math.nan if v is None else v.offset for v in voltage])[:, None]
+        rows = frame.noise_as_rows()
         with np.errstate(divide="ignore", invalid="ignore"):
             # the torque's band over its σ at the conditions: the growth both balances share
-            grown = band / (self.profile.equation_bands * frame.noise_as_rows().torque_sigmas(a, e))
-            return (residual - offset) / (sigma * grown)
+            grown = band / (self.profile.equation_bands * rows.torque_sigmas(a, e))
+            return (residual - rows.voltage_offset) / (rows.voltage_sigmas(a, e) * grown)
 
     def _slow_average(
         self, frame: Frame, torque: NDArray[np.float64], available: NDArray[np.bool_], carries: list[Any]
