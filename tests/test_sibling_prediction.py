@@ -194,7 +194,8 @@ def test_identification_writes_what_the_prediction_needs_and_a_healthy_flight_st
     from mav_motor_health.diagnosis.noise import band_noise_of
     from mav_motor_health.evaluation.worlds import diagnose_flight, identify_world, world_flights
 
-    _, _, vehicle = identify_world(2, tmp_path)
+    _, identified, vehicle = identify_world(2, tmp_path)
+    assert not any("siblings' prediction" in f for f in identified.found.findings)  # measured: nothing to say
     noise = band_noise_of(vehicle.noise)
     assert sorted(noise) == list(MOTORS)
     for m, n in noise.items():

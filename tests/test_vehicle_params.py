@@ -218,6 +218,12 @@ def test_the_real_px4_quad_identified_from_its_own_log_replays_without_a_fault(
     assert vehicle.current is not None and vehicle.current.gain_from == "battery"
     # each motor's noise measured on the flight, so that flight_vehicle's bands come from this vehicle
     assert all(vehicle.noise[m]["speed_rad_s"] > 0 for m in range(1, 5)), vehicle.noise
+    # but its ESCs report every 0.3 s, too slowly for the siblings' prediction: said, in the report and
+    # the file, and the speed judged motor by motor
+    said = [v for k, v in vehicle.source.items() if k.startswith("finding_") and "siblings' prediction" in v]
+    assert len(said) == 1 and "every 0.30 s" in said[0], vehicle.source
+    assert "siblings' prediction" in capsys.readouterr().out
+    assert not any(k.startswith("speed_covariance") for m in vehicle.noise for k in vehicle.noise[m])
     for profile in (None, "flight_vehicle"):  # the default for a vehicle file with its noise, and named
         out = tmp_path / str(profile)
         chosen = [] if profile is None else ["--profile", profile]

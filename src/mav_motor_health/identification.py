@@ -19,8 +19,14 @@ import numpy as np
 
 from .config import DEFAULT_MOTOR, MAX_MOTOR_NUMBER, load_motor_params, load_profile
 from .diagnosis import diagnose
-from .diagnosis.noise import BandNoise, EquationNoise, measure_band_noise, measure_speed_vs_siblings
-from .diagnosis.prediction import measure_speed_covariance
+from .diagnosis.noise import (
+    BandNoise,
+    EquationNoise,
+    band_noise_of,
+    measure_band_noise,
+    measure_speed_vs_siblings,
+)
+from .diagnosis.prediction import MIN_COVARIANCE_SAMPLES, MIN_MOTORS, measure_speed_covariance
 from .diagnosis.profile import ThresholdProfile
 from .errors import DataError, FitError
 from .model.identify import Identification, identify
@@ -138,9 +144,13 @@ def identify_logs(
         found = identify(joined, _as_prior(first.params), k=k, name=label)
         prior_text = "weak: the vehicle's own first estimate (no --prior given)"
     paths = tuple(str(p) for p in logs)
-    vehicle = VehicleParams.identified(found, provenance(found, paths, prior_text))
+    vehicle = with_band_noise(VehicleParams.identified(found), tables)
+    said = without_prediction(vehicle, joined, NOISE_PROFILE)
+    if said:
+        found = replace(found, findings=(*found.findings, said))
+    vehicle = replace(vehicle, source=provenance(found, paths, prior_text))
     return IdentifiedVehicle(
-        vehicle=with_band_noise(vehicle, tables),
+        vehicle=vehicle,
         found=found,
         logs=paths,
         prior=prior_text,
@@ -169,6 +179,26 @@ def with_band_noise(
     for motor, band in measured.items():
         noise.setdefault(motor, {}).update(band.as_mapping())
     return replace(vehicle, noise=noise)
+
+
+def without_prediction(vehicle: VehicleParams, table: TelemetryTable, profile: str = NOISE_PROFILE) -> str:
+    """What the report says where the flight did not give the covariances the siblings' prediction needs
+    (:func:`~.diagnosis.prediction.measure_speed_covariance`) for three or more motors: that the speed
+    is then judged motor by motor, why, and what would let it be measured; "" where it did."""
+    noise = band_noise_of(vehicle.noise)
+    if sum(1 for n in noise.values() if n.speed_covariance) >= MIN_MOTORS:
+        return ""
+    tau_s = float(getattr(load_profile(profile).steady, "residual_tau_s", 0.0))
+    time_s, motor = np.asarray(table["time_s"], dtype=float), np.asarray(table["motor"])
+    gaps = [np.diff(np.sort(time_s[motor == m])) for m in np.unique(motor)]
+    gaps = [g[np.isfinite(g) & (g > 0)] for g in gaps]
+    every = float(np.median(np.concatenate(gaps))) if any(g.size for g in gaps) else math.nan
+    return (
+        "the speed is judged motor by motor, not against its siblings' prediction: the flight did not give "
+        f"{MIN_COVARIANCE_SAMPLES} judged samples of three or more motors with every sibling's report of "
+        f"the {tau_s:g} s before (the ESCs report every {every:.2f} s); a longer flight, or ESC telemetry "
+        f"faster than every {tau_s:g} s, lets fit measure it"
+    )
 
 
 def _diagnosed(
