@@ -462,7 +462,7 @@ class NoiseRows(_ConditionsMath):
     pairing_error_high_rad_s: NDArray[np.float64]
     after_step_table: NDArray[np.float64]
     #: the torque noise each motor is judged with (:attr:`BandNoise.torque_judged`): σ₀, its growth with
-    #: the activity and with the pairing, one row per motor (NaN: not judged in the torque)
+    #: the activity and with the pairing, and the offset, one row per motor (NaN: not judged in the torque)
     torque_table: NDArray[np.float64]
     #: the voltage balance's noise (:attr:`BandNoise.voltage`) and the speed's less its siblings' prediction
     #: (:attr:`BandNoise.speed_vs_siblings`): σ₀, its growth with the activity and with the pairing, and the
@@ -584,26 +584,13 @@ class NoiseRows(_ConditionsMath):
             for name in _ROW_NUMBERS
         }
         table = np.concatenate([n.after_step_table for n in noise]).reshape(-1, AFTER_STEP_BINS)
-        judged = [n.torque_judged for n in noise]
-        torque = np.array(
-            [(j.sigma, j.per_activity, j.per_pairing) if j is not None else (np.nan,) * 3 for j in judged],
-            dtype=float,
-        ).reshape(-1, 3)
-        slow = np.array(
+        torque = _equation_table([n.torque_judged for n in noise])
+        slow = np.hstack(
             [
-                [
-                    number
-                    for equation in (n.slow_speed, n.slow_current, n.slow_torque)
-                    for number in (
-                        (equation.sigma, equation.per_activity, equation.per_pairing, equation.offset)
-                        if equation is not None
-                        else (np.nan,) * 4
-                    )
-                ]
-                for n in noise
-            ],
-            dtype=float,
-        ).reshape(-1, 12)
+                _equation_table([getattr(n, name) for n in noise])
+                for name in ("slow_speed", "slow_current", "slow_torque")
+            ]
+        )
         voltage = _equation_table([n.voltage for n in noise])
         against = _equation_table([n.speed_vs_siblings for n in noise])
         for column in (*columns.values(), table, torque, slow, voltage, against):
