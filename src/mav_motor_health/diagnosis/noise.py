@@ -469,6 +469,9 @@ class NoiseRows(_ConditionsMath):
     #: offset, one row per motor (NaN: not measured)
     voltage_table: NDArray[np.float64]
     against_table: NDArray[np.float64]
+    #: the speed less its siblings' prediction: how many times wider after a step, per bin
+    #: (:attr:`BandNoise.against_after_step_table`), one row per motor
+    against_after_step_table: NDArray[np.float64]
     #: the slow look's noise (:attr:`BandNoise.slow_speed`, :attr:`BandNoise.slow_current`,
     #: :attr:`BandNoise.slow_torque`): σ₀, its growth with the activity and with the pairing, and the
     #: offset, of the speed, the current then the torque, one row per motor (NaN: not measured)
@@ -593,7 +596,10 @@ class NoiseRows(_ConditionsMath):
         )
         voltage = _equation_table([n.voltage for n in noise])
         against = _equation_table([n.speed_vs_siblings for n in noise])
-        for column in (*columns.values(), table, torque, slow, voltage, against):
+        against_table = np.concatenate([n.against_after_step_table for n in noise]).reshape(
+            -1, AFTER_STEP_BINS
+        )
+        for column in (*columns.values(), table, torque, slow, voltage, against, against_table):
             column.flags.writeable = False
         rows = cls(
             **columns,
@@ -601,6 +607,7 @@ class NoiseRows(_ConditionsMath):
             torque_table=torque,
             voltage_table=voltage,
             against_table=against,
+            against_after_step_table=against_table,
             slow_table=slow,
         )
         if len(_ROWS_MADE) >= _ROWS_HELD:

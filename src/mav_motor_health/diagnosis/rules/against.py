@@ -38,11 +38,11 @@ class AgainstSiblings(Rule):
         explained, noise = frame.speed_siblings_rad_s, frame.noise
         if explained is None or noise is None:
             return carries
-        if not any(n.speed_vs_siblings is not None and np.isfinite(n.speed_vs_siblings.sigma) for n in noise):
+        rows = frame.noise_as_rows()
+        if not np.isfinite(rows.against_table[:, 0]).any():
             return carries
         a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
         e = frame.pairing_error_rad_s
-        rows = frame.noise_as_rows()
         if frame.sigma_speed_rad_s is None or frame.sigma_current_a is None:
             frame.sigma_speed_rad_s, frame.sigma_current_a = rows.sigmas(a, e)
         identified = frame.sigma_speed_rad_s
@@ -50,9 +50,8 @@ class AgainstSiblings(Rule):
         sigma = np.broadcast_to(rows.against_sigmas(a, e), frame.shape)
         if frame.since_step_s is not None:
             # after a step each is wider by its own measured widening (the deviation's is in the band)
-            table = np.concatenate([n.against_after_step_table for n in noise])
             settle_s = float(getattr(self.profile.steady, "settle_s", 0.0))
-            sigma = sigma * after_step_factor(table, frame.since_step_s, settle_s)
+            sigma = sigma * after_step_factor(rows.against_after_step_table, frame.since_step_s, settle_s)
             if frame.after_step_factor is not None:
                 own = own * frame.after_step_factor
         with np.errstate(invalid="ignore", divide="ignore"):
