@@ -347,13 +347,21 @@ class CommandExcursions:
             first = np.ones(s.size, dtype=bool)
             first[1:] = s[1:] != s[:-1]
             base = s * (n + 1)
-            bounds = np.empty(2 * s.size, dtype=np.int64)
-            bounds[1::2] = base + end
-            bounds[0] = base[0]
-            bounds[2::2] = np.where(first[1:], base[1:], bounds[1:-1:2])
-            bounds[0::2] = np.where(bounds[0::2] < bounds[1::2], bounds[0::2], base + n)  # no row: the NaN
-            lowest = np.fmin.reduceat(flat.ravel(), bounds)[::2]
-            highest = np.fmax.reduceat(flat.ravel(), bounds)[::2]
+            stop = base + end
+            start = np.empty(s.size, dtype=np.int64)
+            start[0] = base[0]
+            start[1:] = np.where(first[1:], base[1:], stop[:-1])
+            # each sample's rows reduced where it has any (NaN where none): only those windows go to
+            # reduceat, so that what it also reduces between two of them (the odd places, dropped) is
+            # empty within a signal; with every sample's window there, each sample without a row reduced
+            # from the row before's end to its signal's last row, at each such sample (quadratic: on a
+            # 60-minute log, commands at 10 Hz and ESCs at 25-50 Hz, 1.6 s of a 2.2-s read)
+            rows_in = start < stop
+            bounds = np.column_stack([start[rows_in], stop[rows_in]]).ravel()
+            lowest, highest = np.full(s.size, np.nan), np.full(s.size, np.nan)
+            if bounds.size:
+                lowest[rows_in] = np.fmin.reduceat(flat.ravel(), bounds)[::2]
+                highest[rows_in] = np.fmax.reduceat(flat.ravel(), bounds)[::2]
             lowest = np.where(first, np.fmin(lowest, low[s]), lowest)  # with the values carried
             highest = np.where(first, np.fmax(highest, high[s]), highest)
             # held at each sample: the last value up to it, else the last carried since the sample before,
