@@ -228,3 +228,56 @@ def test_with_speeds_pieces_give_what_the_whole_gives() -> None:
             pieces[r, d : d + k] = out[r, :k]
         done = [d + k for d, k in zip(done, counts)]
     np.testing.assert_array_equal(pieces, whole)
+
+
+def test_a_whole_log_worked_out_in_parts_gives_the_references_of_one_call(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A call longer than the stage's part (a whole log: :data:`~.siblings.STREAM_CHUNK`) is worked out
+    as consecutive calls cut between instants: every quantity's references, the siblings' prediction's
+    included, and the latest values it carries to the next call, are those of one call over it all.
+    The motors report on one clock (many instants shared by several motors, which a cut must not split)
+    and each loses some samples."""
+    from mav_motor_health.diagnosis import siblings
+    from mav_motor_health.diagnosis.prediction import SiblingPrediction
+
+    rng = np.random.default_rng(31)
+    motors = [1, 2, 3, 4, 5, 6]
+    n = 700
+    # every motor on the same 50-Hz clock, each with its own dropped samples: shared instants
+    clock = np.arange(900) * 0.02
+    times = np.array([np.sort(rng.choice(clock, n, replace=False)) for _ in motors])
+    names = [name for name, _ in siblings.STAGE_QUANTITIES]
+    values = {}
+    for q, name in enumerate(names):
+        v = np.cos((0.2 + 0.1 * q) * times) + 0.05 * rng.standard_normal(times.shape)
+        v[rng.random(v.shape) < 0.05 + 0.05 * q] = np.nan
+        values[name] = v
+    speeds = 400.0 + 60.0 * rng.standard_normal(times.shape)
+    in_range = rng.random(times.shape) < 0.9
+    age = np.full(times.shape, 0.1)
+    angle = np.deg2rad([0, 180, 300, 120, 60, 240])
+    mix = np.column_stack([np.ones(6), np.cos(angle), np.sin(angle)])
+    sigma = mix @ np.diag([4.0, 9.0, 9.0]) @ mix.T + np.diag(np.full(6, 2.0))
+    cov = {m: tuple((o, float(sigma[i, j])) for j, o in enumerate(motors)) for i, m in enumerate(motors)}
+    prediction = SiblingPrediction.of(cov, cov, exclude_sigmas=2.5)
+    assert prediction is not None
+
+    def run() -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict]:  # type: ignore[type-arg]
+        stage = VehicleStage(list(motors), alike={"torque_residual_nm": 0.1}, prediction=prediction)
+        first = stage.references(motors, times, values, [n] * 6, age, speeds, in_range)
+        later = {name: v[:, :50] for name, v in values.items()}
+        second = stage.references(
+            motors, times[:, :50] + 20.0, later, [50] * 6, age[:, :50], speeds[:, :50], in_range[:, :50]
+        )
+        return first, second, stage.latest
+
+    monkeypatch.setattr(siblings, "STREAM_CHUNK", 10**9)
+    whole = run()
+    monkeypatch.setattr(siblings, "STREAM_CHUNK", 97)
+    assert siblings._chunks(times, [n] * 6) is not None  # the call is cut into parts
+    assert siblings._chunks(times, [n] * 6).shape[1] > 30
+    parts = run()
+    for name in names:
+        assert np.isfinite(whole[0][name]).mean() > 0.2, name
+        np.testing.assert_array_equal(parts[0][name], whole[0][name], err_msg=name)
+        np.testing.assert_array_equal(parts[1][name], whole[1][name], err_msg=name)
+    assert parts[2] == whole[2]

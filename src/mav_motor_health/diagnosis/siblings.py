@@ -49,6 +49,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -73,6 +74,9 @@ _BEFORE = " before"
 #: the other motors' values a reference needs: a median of three holds against one that departs (the
 #: faulty motor, or one the model is carried far beyond its identified speeds for); a quadcopter's all but one
 MEDIAN_OF = 3
+#: a call of the stage works out its stream in parts of about this many samples (a whole log's; the live
+#: agent's calls are far shorter): arrays of a few megabytes, in the processor's cache
+STREAM_CHUNK = 8192
 
 
 @dataclass
@@ -114,7 +118,18 @@ class VehicleStage:
         :attr:`alike` ``speed_rad_s`` (each sample's model speed) and ``in_range`` (whether it lies in the
         motor's identified range; both None: every sibling counts), 2-D, one row per motor of ``motors``,
         each row's first ``counts`` samples its own (the rest padding: NaN in the result). Advances the
-        carried latest values."""
+        carried latest values.
+
+        A call of more than :data:`STREAM_CHUNK` samples (a whole log) is worked out as consecutive calls
+        of about that many, cut between instants in arrival order, as the live agent's batches cut it
+        (the same references: every reference is of the latest values before it, which each call
+        carries to the next); the stream's arrays (quantities × samples × motors) then stay in the
+        processor's cache instead of running to hundreds of megabytes (issue 18)."""
+        chunks = _chunks(time_s, counts)
+        if chunks is not None:
+            return self._references_in_chunks(
+                chunks, motors, time_s, values, counts, max_age_s, speed_rad_s, in_range
+            )
         rows, width = np.shape(time_s)
         names = list(values)
         out = {name: np.full((rows, width), np.nan) for name in names}
@@ -164,20 +179,29 @@ class VehicleStage:
         )
         have = last >= 0
         at = np.maximum(last, 0)
-        fresh = have & (t[:, None] - t[at] <= age_limit[:, None]) & ~mine[None]
-        latest = np.take_along_axis(v, at.reshape(len(names), -1), axis=1).reshape(at.shape)
-        for q, name in enumerate(names):
-            share = self.alike.get(name)
-            if share is not None and judging_alike:
-                # a sibling beyond its identified speeds carries the model's error there: a reference only
-                # at this motor's own speed (module doc, "Beyond the identified speeds")
-                with np.errstate(invalid="ignore"):
-                    near = np.abs(speeds[at[q]] - speeds[:, None]) <= share * np.abs(speeds[:, None])
-                fresh[q] &= trusted[at[q]] | near
-        others = np.where(fresh, latest, np.nan)
-        need = min(MEDIAN_OF, max(1, len(self.motors) - 2))  # three others, or all but one where fewer
-        reference = median_of_finite(others.reshape(-1, len(self.motors)), need).reshape(len(names), -1)
-        if self.prediction is not None and PREDICTED in names:
+        # the quantities whose reference is the siblings' median (the predicted one's is the prediction,
+        # worked out below from each sibling's latest before the sample's instant)
+        predicted = self.prediction is not None and PREDICTED in names
+        medians = [q for q, name in enumerate(names) if not (predicted and name == PREDICTED)]
+        reference = np.full((len(names), t.size), np.nan)
+        if medians:
+            m_at = at[medians]
+            fresh = have[medians] & (t[:, None] - t[m_at] <= age_limit[:, None]) & ~mine[None]
+            latest = np.take_along_axis(v[medians], m_at.reshape(len(medians), -1), axis=1).reshape(
+                m_at.shape
+            )
+            for i, q in enumerate(medians):
+                share = self.alike.get(names[q])
+                if share is not None and judging_alike:
+                    # a sibling beyond its identified speeds carries the model's error there: a reference
+                    # only at this motor's own speed (module doc, "Beyond the identified speeds")
+                    with np.errstate(invalid="ignore"):
+                        near = np.abs(speeds[m_at[i]] - speeds[:, None]) <= share * np.abs(speeds[:, None])
+                    fresh[i] &= trusted[m_at[i]] | near
+            need = min(MEDIAN_OF, max(1, len(self.motors) - 2))  # three others, or all but one where fewer
+            others = np.where(fresh, latest, np.nan).reshape(-1, len(self.motors))
+            reference[medians] = median_of_finite(others, need).reshape(len(medians), -1)
+        if predicted:
             q = names.index(PREDICTED)
             # each sibling's latest before the sample's own time, never of the same instant (prediction.py,
             # "Before, never of the same instant"): its latest at the place before the instant's first
@@ -213,6 +237,37 @@ class VehicleStage:
                         into.pop(self.motors[j], None)
         return out
 
+    def _references_in_chunks(
+        self,
+        chunks: NDArray[np.intp],
+        motors: Sequence[int],
+        time_s: NDArray[np.float64],
+        values: Mapping[str, NDArray[np.float64]],
+        counts: Sequence[int],
+        max_age_s: NDArray[np.float64],
+        speed_rad_s: NDArray[np.float64] | None,
+        in_range: NDArray[np.bool_] | None,
+    ) -> dict[str, NDArray[np.float64]]:
+        """:meth:`references` as consecutive calls: ``chunks[r, c]`` the first sample of row r in the
+        c-th (its last column: the row's count)."""
+        rows, width = np.shape(time_s)
+        out = {name: np.full((rows, width), np.nan) for name in values}
+        for c in range(chunks.shape[1] - 1):
+            lo, hi = chunks[:, c].tolist(), chunks[:, c + 1].tolist()
+            found = self.references(
+                motors,
+                _part(time_s, lo, hi, np.nan),
+                {name: _part(v, lo, hi, np.nan) for name, v in values.items()},
+                [h - l for l, h in zip(lo, hi)],
+                _part(max_age_s, lo, hi, np.nan),
+                None if speed_rad_s is None else _part(speed_rad_s, lo, hi, np.nan),
+                None if in_range is None else _part(in_range, lo, hi, False),
+            )
+            for name, got in found.items():
+                for r, (l, h) in enumerate(zip(lo, hi)):
+                    out[name][r, l:h] = got[r, : h - l]
+        return out
+
     def _predicted(
         self,
         latest: NDArray[np.float64],
@@ -236,6 +291,33 @@ class VehicleStage:
             x[known, p[known]] = own[known]
             out[known] = self.prediction.explained(x[known], p[known])
         return out
+
+
+def _part(x: NDArray[Any], lo: list[int], hi: list[int], fill: Any) -> NDArray[Any]:
+    """Samples ``lo[r]`` to ``hi[r]`` of each row r of ``x``, as rows padded with ``fill``."""
+    piece = np.full((len(lo), max(h - l for l, h in zip(lo, hi))), fill, dtype=x.dtype)
+    for r, (l, h) in enumerate(zip(lo, hi)):
+        piece[r, : h - l] = x[r, l:h]
+    return piece
+
+
+def _chunks(time_s: NDArray[np.float64], counts: Sequence[int]) -> NDArray[np.intp] | None:
+    """Where a call holds more than 2 × :data:`STREAM_CHUNK` samples with finite times: each row's first
+    sample of each consecutive part of about :data:`STREAM_CHUNK` samples in arrival order, cut between
+    instants (one column per part, and a last one: the rows' counts); None otherwise (one call)."""
+    total = int(sum(counts))
+    if total <= 2 * STREAM_CHUNK:
+        return None
+    times = np.asarray(time_s, dtype=float)
+    own = [times[r, :k] for r, k in enumerate(counts)]
+    every = np.concatenate(own)
+    if not np.isfinite(every).all():
+        return None
+    cuts = np.unique(np.sort(every)[STREAM_CHUNK::STREAM_CHUNK])
+    # side="left": the samples of a cut's instant go with the part it begins (an instant stays whole)
+    starts = np.array([np.searchsorted(row, cuts, side="left") for row in own], dtype=np.intp)
+    ends = np.asarray(counts, dtype=np.intp)[:, None]
+    return np.concatenate([np.zeros((len(own), 1), dtype=np.intp), starts, ends], axis=1)
 
 
 def median_of_finite(values: NDArray[np.float64], need: int) -> NDArray[np.float64]:
