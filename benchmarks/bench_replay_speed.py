@@ -2,6 +2,7 @@
 
     PYTHONPATH=src python benchmarks/bench_replay_speed.py [--minutes 60] [--simulate-minutes 10]
                                                            [--esc-hz 25] [--repeat 3] [--profile]
+                                                           [--vehicle bundled|identified]
 
 The log is written here with the project's simulator and writers (``sim.engine.run_scenario``,
 ``sim.writers.write_record``): a healthy hexacopter in moderate air repeating hover, climb, translate and
@@ -28,7 +29,14 @@ Timed, in the same run, on the same files (process CPU time, single-threaded; wa
 ``--repeat N`` times each of the four N times in a row and keeps each one's least CPU time: on a shared
 machine the least is the run other work disturbed least (pymavlink's runs as much as ours; each replay
 writes a new folder). The ratios (pymavlink's time / ours) are the result; issue 18's goal is ≥ 10× for
-the whole replay, on both formats. ``--profile`` adds two cProfiles on the .tlog: ``diagnose`` on its table (where the core's
+the whole replay, on both formats.
+
+``--vehicle identified`` replays with the vehicle file a user who ran ``fit`` has: the simulated motor with
+each motor's noise measured as ``fit`` measures it (``identification.with_band_noise``) on another flight
+of the same vehicle (150 s, the same manoeuvres, another seed), so that the diagnosis runs the
+``flight_vehicle`` profile (bands in the vehicle's noise, the sequential test, the vehicle stage, the slow
+look and the siblings' prediction), as ``replay --params vehicle.toml`` picks it; ``bundled`` (the
+default) the bundled motor and the ``flight`` profile. ``--profile`` adds two cProfiles on the .tlog: ``diagnose`` on its table (where the core's
 time goes) and the whole ``replay_log`` (reading, the core and writing the files, by cumulative time).
 """
 
@@ -50,7 +58,10 @@ from typing import Any
 import numpy as np
 
 from mav_motor_health.config import DEFAULT_MOTOR, load_profile, load_vehicle_params
+from mav_motor_health.diagnosis.noise import band_noise_of
 from mav_motor_health.diagnosis.pipeline import diagnose
+from mav_motor_health.identification import with_band_noise
+from mav_motor_health.model.vehicle import VehicleParams
 from mav_motor_health.replay import replay_log
 from mav_motor_health.sim.engine import run_scenario
 from mav_motor_health.sim.scenario import scenario_from_dict
@@ -75,10 +86,13 @@ MANOEUVRES = [
     {"kind": "descend", "duration_s": 4.0, "speed_m_s": 1.0},
 ]
 PARAM_VALUE_ID = 22
+#: the vehicle and profile replayed (``--vehicle``): None, the bundled motor and ``flight``
+VEHICLE: VehicleParams | None = None
+PROFILE = "flight"
 
 
 # -- the log --------------------------------------------------------------------------------------------
-def simulate(directory: Path, seconds: float, esc_hz: float) -> tuple[Path, Path, int]:
+def simulate(directory: Path, seconds: float, esc_hz: float, seed: int = 18) -> tuple[Path, Path, int]:
     """A healthy six-motor flight of ``seconds`` written as .tlog and .bin; returns both and the samples."""
     rounds = math.ceil(seconds / sum(s["duration_s"] for s in MANOEUVRES))
     scenario = scenario_from_dict(
@@ -88,7 +102,7 @@ def simulate(directory: Path, seconds: float, esc_hz: float) -> tuple[Path, Path
                 "mode": "flight",
                 "duration_s": seconds,
                 "dt_s": 0.02,
-                "seed": 18,
+                "seed": seed,
             },
             "flight": {
                 "turbulence": "moderate",
@@ -103,6 +117,20 @@ def simulate(directory: Path, seconds: float, esc_hz: float) -> tuple[Path, Path
     tlog, _ = write_record(record, directory / "block.tlog", force=True)
     dataflash, _ = write_record(record, directory / "block.bin", force=True)
     return tlog, dataflash, len(record.esc)
+
+
+def identified_vehicle(directory: Path, esc_hz: float) -> VehicleParams:
+    """The bundled motor with each motor's noise measured as ``fit`` measures it, on a 150-s flight of
+    the same vehicle (seed 19): the vehicle file of ``--vehicle identified``."""
+    folder = directory / "identification"
+    folder.mkdir()
+    tlog, _, _ = simulate(folder, 150.0, esc_hz, seed=19)
+    return with_band_noise(load_vehicle_params(DEFAULT_MOTOR), [sources.read(tlog)])
+
+
+def _vehicle_and_profile() -> tuple[VehicleParams, Any]:
+    vehicle = VEHICLE if VEHICLE is not None else load_vehicle_params(DEFAULT_MOTOR)
+    return vehicle, load_profile(PROFILE)
 
 
 def _shift_u64(data: np.ndarray, at: np.ndarray, dtype: str, shift: int) -> None:
@@ -212,13 +240,16 @@ def _least(fn: Callable[[], Any], runs: int) -> tuple[float, float, Any]:
 def compare(
     log: Path, out_dir: Path, baseline: Callable[[Path], int], label: str, runs: int = 1
 ) -> dict[str, float]:
-    vehicle, profile = load_vehicle_params(DEFAULT_MOTOR), load_profile("flight")
+    vehicle, profile = _vehicle_and_profile()
     params = vehicle.models(range(1, 7))
     sources.read(log)  # warm-up: imports, page cache
     folders = (out_dir / f"run{k}" for k in range(runs))  # each replay writes a new folder, as replay does
     base_cpu, base_wall, records = _least(lambda: baseline(log), runs)
     read_cpu, read_wall, table = _least(lambda: sources.read(log), runs)
-    diag_cpu, diag_wall, result = _least(lambda: diagnose(vehicle.calibrate(table), params, profile), runs)
+    noise = band_noise_of(vehicle.noise) if profile.noise_bands > 0 else None  # as replay gives it
+    diag_cpu, diag_wall, result = _least(
+        lambda: diagnose(vehicle.calibrate(table), params, profile, noise), runs
+    )
     whole_cpu, whole_wall, replay = _least(
         lambda: replay_log(log, next(folders), vehicle, profile, force=True), runs
     )
@@ -230,7 +261,7 @@ def compare(
     print(f"   {label + f' ({records} records)':52s} {base_cpu:8.2f} {base_wall:8.2f} {'1.0x':>24s}")
     rows = [
         ("project reader alone (telemetry.sources.read)", read_cpu, read_wall),
-        ("reader + diagnose (flight profile)", read_cpu + diag_cpu, read_wall + diag_wall),
+        (f"reader + diagnose ({profile.name} profile)", read_cpu + diag_cpu, read_wall + diag_wall),
         ("whole replay (replay_log: read, diagnose, 3 files)", whole_cpu, whole_wall),
     ]
     for name, cpu, wall in rows:
@@ -243,9 +274,10 @@ def compare(
 
 def profile_diagnosis(table: Any, vehicle: Any, params: Any, profile: Any, lines: int = 25) -> None:
     calibrated = vehicle.calibrate(table)
+    noise = band_noise_of(vehicle.noise) if profile.noise_bands > 0 else None
     profiler = cProfile.Profile()
     profiler.enable()
-    diagnose(calibrated, params, profile)
+    diagnose(calibrated, params, profile, noise)
     profiler.disable()
     text = io.StringIO()
     stats = pstats.Stats(profiler, stream=text)
@@ -256,7 +288,7 @@ def profile_diagnosis(table: Any, vehicle: Any, params: Any, profile: Any, lines
 
 def profile_replay(log: Path, out_dir: Path, lines: int = 30) -> None:
     """cProfile of the whole replay of ``log`` (sorted by cumulative time): reading, the core, the files."""
-    vehicle, profile = load_vehicle_params(DEFAULT_MOTOR), load_profile("flight")
+    vehicle, profile = _vehicle_and_profile()
     profiler = cProfile.Profile()
     profiler.enable()
     replay_log(log, out_dir, vehicle, profile, force=True)
@@ -280,8 +312,16 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="also cProfile diagnose() and the whole replay_log() on the .tlog",
     )
+    ap.add_argument(
+        "--vehicle",
+        choices=("bundled", "identified"),
+        default="bundled",
+        help="the bundled motor (flight profile), or its vehicle file with the noise fit measures"
+        " (flight_vehicle, as replay --params picks it for a file fit wrote)",
+    )
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
+    global VEHICLE, PROFILE
     block_s = 60.0 * min(args.simulate_minutes, args.minutes)
     repeats = max(1, round(args.minutes * 60.0 / block_s))
     period_s = block_s + 1.0 / args.esc_hz  # each repeat starts one ESC period after the block's end
@@ -293,6 +333,10 @@ def main(argv: list[str] | None = None) -> int:
         folder = Path(tmp)
         cpu, _, (tlog_block, bin_block, samples) = _timed(lambda: simulate(folder, block_s, args.esc_hz))
         print(f"   simulated and written in {cpu:.1f} s CPU ({samples} ESC samples in the block)")
+        if args.vehicle == "identified":
+            cpu, _, VEHICLE = _timed(lambda: identified_vehicle(folder, args.esc_hz))
+            PROFILE = "flight_vehicle"
+            print(f"   vehicle: the noise measured as fit does, on another 150-s flight, in {cpu:.1f} s CPU")
         tlog, dataflash = folder / "flight.tlog", folder / "flight.bin"
         repeat_tlog(tlog_block, tlog, repeats, period_s)
         repeat_dataflash(bin_block, dataflash, repeats, period_s)
