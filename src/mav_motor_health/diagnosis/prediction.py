@@ -139,11 +139,9 @@ class SiblingPrediction:
     ) -> NDArray[np.float64]:
         """Each motor's |departure| from the prediction by the others, ``own`` and ``left_out`` left out of
         it (−inf for those two), in its conditional σ."""
-        g = (
-            np.abs(np.einsum("ij,ijk->ik", x, self.without[own, left_out]))
-            / self.without_scale[own, left_out]
-        )
-        return np.where(np.isfinite(self.without_scale[own, left_out]), g, -np.inf)
+        scale = self.without_scale[own, left_out]
+        g = np.abs(np.einsum("ij,ijk->ik", x, self.without[own, left_out])) / scale
+        return np.where(np.isfinite(scale), g, -np.inf)
 
     def explained(self, deviations: NDArray[np.float64], own: NDArray[np.intp]) -> NDArray[np.float64]:
         """The siblings' part of each row's own deviation: ``deviations`` rows × motors (in
@@ -162,9 +160,13 @@ class SiblingPrediction:
         left_out = np.where(departs, worst, own)
         part = np.einsum("ij,ij->i", self.weights[own, left_out], x)
         # and where, without it, another still departs: not the pattern Σ was measured in (a stalled
-        # motor's siblings compensating it, each at another operating point): no prediction
-        again = self._departures(x, own, left_out)
-        alike = ~departs | (np.max(again, axis=1) <= self.exclude_sigmas)
+        # motor's siblings compensating it, each at another operating point): no prediction (only the
+        # rows that left one out: elsewhere the departures without it are those above, none beyond)
+        alike = ~departs
+        left = np.flatnonzero(departs)
+        if left.size:
+            again = self._departures(x[left], own[left], left_out[left])
+            alike[left] = np.max(again, axis=1) <= self.exclude_sigmas
         return np.where(complete & alike, part, np.nan)
 
 
