@@ -281,3 +281,17 @@ def test_a_whole_log_worked_out_in_parts_gives_the_references_of_one_call(monkey
         np.testing.assert_array_equal(parts[0][name], whole[0][name], err_msg=name)
         np.testing.assert_array_equal(parts[1][name], whole[1][name], err_msg=name)
     assert parts[2] == whole[2]
+
+
+def test_a_whole_log_at_one_instant_is_one_call(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A log whose samples share one time stamp (broken time stamps) is not cut at all: one call."""
+    from mav_motor_health.diagnosis import siblings
+
+    monkeypatch.setattr(siblings, "STREAM_CHUNK", 5)
+    times = np.zeros((6, 40))
+    values = np.arange(240, dtype=float).reshape(6, 40)
+    assert siblings._chunks(times, [40] * 6) is None
+    got = SiblingTorque([1, 2, 3, 4, 5, 6]).reference(
+        [1, 2, 3, 4, 5, 6], times, values, [40] * 6, np.ones((6, 40))
+    )
+    assert np.isfinite(got).any()

@@ -313,7 +313,13 @@ def _chunks(time_s: NDArray[np.float64], counts: Sequence[int]) -> NDArray[np.in
     every = np.concatenate(own)
     if not np.isfinite(every).all():
         return None
-    cuts = np.unique(np.sort(every)[STREAM_CHUNK::STREAM_CHUNK])
+    ranked = np.sort(every)
+    # (no cut at the first instant: every part holds samples, and one instant of more samples than a part
+    # is never cut again)
+    cuts = np.unique(ranked[STREAM_CHUNK::STREAM_CHUNK])
+    cuts = cuts[cuts > ranked[0]]
+    if cuts.size == 0:
+        return None
     # side="left": the samples of a cut's instant go with the part it begins (an instant stays whole)
     starts = np.array([np.searchsorted(row, cuts, side="left") for row in own], dtype=np.intp)
     ends = np.asarray(counts, dtype=np.intp)[:, None]
