@@ -92,6 +92,8 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ("[profile]\nslow_band_fraction = 1.5\n", "profile.slow_band_fraction"),
         ("[profile]\nconditions_reach = 0.5\n", "profile.conditions_reach"),
         ("[profile]\nconditions_growth = -1\n", "profile.conditions_growth"),
+        ("[profile]\nrange_growth = 5\n", "profile.range_growth"),
+        ("[profile]\nrange_growth = 1\n", "profile.range_growth"),  # without range_margin: nothing to grow in
     ],
 )
 def test_bad_profiles(tmp_path: Path, text: str, key: str) -> None:

@@ -804,3 +804,42 @@ def test_noise_rows_are_made_once_for_the_same_noise_and_never_for_other_noise()
     other = [BandNoise(9.0, 0.5), *noise[1:]]
     assert NoiseRows.of(other).speed_rad_s[0, 0] == 9.0
     np.testing.assert_array_equal(NoiseRows.of(equal_but_new).speed_rad_s, rows.speed_rad_s)
+
+
+def test_beyond_the_identified_speeds_the_bands_grow_with_the_distance_in_units_of_the_span(paper_motor):
+    """Within ``range_margin`` past the speeds identification covered, the model is an extrapolation of a
+    curve fitted over that span: with ``range_growth`` g the bands there are (1 + d/span)**g times the
+    measured ones (d how far beyond), and within the range exactly as without it."""
+    table = sources.read(FLIGHT)
+    flat = load_profile("flight_vehicle")  # ships without it (docs/flight.md, "Bands grown beyond ...")
+    assert flat.range_growth == 0.0
+    with_growth = dataclasses.replace(flat, range_growth=1.0)
+    wide = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=3.8) for m in range(1, 7)}
+    model = diagnose(table, paper_motor, flat, wide)["omega_model_rad_s"]
+    low, high = np.nanquantile(model, [0.3, 0.7])
+    narrow = {m: dataclasses.replace(n, omega_low_rad_s=low, omega_high_rad_s=high) for m, n in wide.items()}
+    grown, measured = (
+        diagnose(table, paper_motor, with_growth, narrow),
+        diagnose(table, paper_motor, flat, narrow),
+    )
+    w = grown["omega_model_rad_s"]
+    np.testing.assert_array_equal(w, measured["omega_model_rad_s"])
+    beyond = np.maximum(np.maximum(w - high, low - w), 0.0)
+    margin = flat.range_margin  # beyond it only a lost load is judged, in the bands as measured
+    within = (w >= (1.0 - margin) * low) & (w <= (1.0 + margin) * high)
+    factor = np.where(within, 1.0 + beyond / (high - low), 1.0)
+    judged = measured["steady"] & np.isfinite(measured["speed_band_rad_s"])
+    outside, inside = judged & (beyond > 0), judged & (beyond == 0)
+    assert outside.sum() > 200 and inside.sum() > 200 and factor[outside].max() > 1.05
+    for band in ("speed_band_rad_s", "current_band_a"):
+        np.testing.assert_array_equal(grown[band][inside], measured[band][inside])
+        np.testing.assert_allclose(
+            grown[band][outside], measured[band][outside] * factor[outside], rtol=1e-12
+        )
+    # the factor itself, on the noise's rows: 1 within the range, on its ends, beyond the margin and
+    # where the range is not known
+    known = dataclasses.replace(wide[1], omega_low_rad_s=100.0, omega_high_rad_s=200.0)
+    speeds = np.array([[100.0, 200.0, 250.0, 75.0, np.nan, 301.0, 49.0]] * 2)
+    rows = NoiseRows.of([known, wide[1]])
+    np.testing.assert_allclose(rows.beyond_range(speeds, 0.5, 2.0)[0], [1, 1, 2.25, 1.5625, 1, 1, 1])
+    np.testing.assert_array_equal(rows.beyond_range(speeds, 0.5, 2.0)[1], np.ones(7))  # range not known

@@ -278,6 +278,7 @@ _PROFILE_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "noise_bands": (0.0, 50.0, ""),
     "stall_split_typical": (0.0, 100.0, ""),
     "range_margin": (0.0, 10.0, ""),
+    "range_growth": (0.0, 4.0, ""),
     "conditions_reach": (1.0, 100.0, ""),
     "conditions_growth": (0.0, 4.0, ""),
     "conditions_siblings": (0.0, 100.0, ""),
@@ -440,6 +441,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
         lines.append(f"stall_split_typical = {profile.stall_split_typical!r}")
     if profile.range_margin:
         lines.append(f"range_margin = {profile.range_margin!r}")
+    if profile.range_growth:
+        lines.append(f"range_growth = {profile.range_growth!r}")
     if profile.conditions_reach != 1.0:
         lines.append(f"conditions_reach = {profile.conditions_reach!r}")
         lines.append(f"conditions_growth = {profile.conditions_growth!r}")

@@ -359,6 +359,25 @@ class _ConditionsMath:
             inside = (w >= (1.0 - margin) * low) & (w <= (1.0 + margin) * high)
         return np.where(np.isfinite(low) & np.isfinite(high), inside, True)
 
+    def beyond_range(
+        self, omega_model_rad_s: ArrayLike, margin: float, exponent: float
+    ) -> NDArray[np.float64]:
+        """``(1 + d/span)**exponent`` where the model speed lies beyond the range the healthy flight
+        covered but within ``margin`` of it (:meth:`in_speed_range`): d how far beyond (above its top or
+        below its bottom), span the range's width; 1 within the range, beyond the margin (nothing but a
+        lost load is judged there, against σ as measured: rules/judged.py), and where the range is not
+        known or has no width. A model fitted over the span is an extrapolation beyond it, whose error
+        grows with the distance in units of the span the fit saw (the leverage of a regression's
+        prediction), not in units of the speed."""
+        w = np.asarray(omega_model_rad_s, dtype=float)
+        low, high = self.omega_low_rad_s, self.omega_high_rad_s
+        with np.errstate(invalid="ignore", divide="ignore"):
+            span = np.asarray(high) - np.asarray(low)
+            beyond = np.maximum(np.maximum(w - high, low - w), 0.0)
+            factor = (1.0 + beyond / span) ** exponent
+        grows = np.isfinite(factor) & (span > 0) & self.in_speed_range(w, margin)
+        return np.where(grows, factor, 1.0)
+
     def beyond_conditions(
         self, margin: float, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
     ) -> NDArray[np.float64]:

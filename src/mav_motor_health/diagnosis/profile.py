@@ -133,6 +133,11 @@ class ThresholdProfile:
     identification flight covered, by more than this share of the range's ends, or whose input activity
     exceeds the flight's busiest by more than this share, are not judged (the model, or its noise, was
     never checked there; stalls are still named). 0: judged everywhere.
+    ``range_growth`` (g ≥ 0, with ``range_margin``): within that margin, beyond the identified speeds, the
+    bands are multiplied by ``(1 + d/span)**g``, d how far the model speed lies beyond the range and span
+    the range's width: the model there is an extrapolation of a curve fitted over the span, and its error
+    grows with the distance in units of the span the fit saw (:meth:`~.noise.NoiseRows.beyond_range`).
+    0, the default: the bands as measured up to the margin.
     ``conditions_reach`` (≥ 1, with ``noise_bands`` and ``range_margin``): the input activity and the
     pairing error are judged up to this multiple of those limits, where σ is an extrapolation, multiplied
     by ``excess ** conditions_growth`` (≥ 0; excess: how many times the limit the sample lies beyond it),
@@ -173,6 +178,7 @@ class ThresholdProfile:
     noise_bands: float = 0.0
     stall_split_typical: float = 0.0
     range_margin: float = 0.0
+    range_growth: float = 0.0
     conditions_reach: float = 1.0
     conditions_growth: float = 0.0
     conditions_siblings: float = 0.0
@@ -269,6 +275,13 @@ class ThresholdProfile:
                 f"{self.range_margin!r}",
                 key="range_margin",
                 expected="a share 0..10 of the identified speed range's ends (0: judged everywhere)",
+            )
+        if not (self.range_growth == 0 or (0 < self.range_growth <= 4 and self.range_margin > 0)):
+            raise ConfigError(
+                f"{self.range_growth!r}",
+                key="range_growth",
+                expected="an exponent 0 < g <= 4 of the bands' growth beyond the identified speeds (with"
+                " range_margin > 0), or 0 (the bands as measured)",
             )
         if not 1 <= self.conditions_reach <= 100:
             raise ConfigError(

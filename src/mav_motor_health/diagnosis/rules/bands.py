@@ -165,11 +165,22 @@ class Bands(Rule):
             if after is not None:
                 step = np.where(np.isfinite(after), after, 1.0)
                 widen_speed, widen_current = widen_speed * step, widen_current * step
-            speed *= widen_speed
-            current *= widen_current
             if torque is not None:
                 widest = np.broadcast_to(np.maximum(widen_speed, widen_current), shape)
                 torque = frame.noise_as_rows().torque_sigmas(a, e) * widest
+            if profile.range_growth > 0 and profile.judges_within_noise_conditions:
+                # beyond the identified speeds (within range_margin) each motor's own model is
+                # extrapolated (noise.py, beyond_range); a torque judged against its siblings' is not: they
+                # share that error at the same speed (siblings.py, "Beyond the identified speeds")
+                beyond = frame.noise_as_rows().beyond_range(
+                    frame.omega_model_rad_s, profile.range_margin, profile.range_growth
+                )
+                widen_speed, widen_current = widen_speed * beyond, widen_current * beyond
+                if torque is not None:
+                    own = np.array([n.torque_vs_siblings is None for n in noise])[:, None]
+                    torque = torque * np.where(own, beyond, 1.0)
+            speed *= widen_speed
+            current *= widen_current
             frame.speed_band_rad_s = profile.noise_bands * speed
             frame.current_band_a = profile.noise_bands * current
             frame.current_band_below_a = frame.current_band_a.copy()
