@@ -811,9 +811,9 @@ def test_beyond_the_identified_speeds_the_bands_grow_with_the_distance_in_units_
     curve fitted over that span: with ``range_growth`` g the bands there are (1 + d/span)**g times the
     measured ones (d how far beyond), and within the range exactly as without it."""
     table = sources.read(FLIGHT)
-    flat = load_profile("flight_vehicle")  # ships without it (docs/flight.md, "Bands grown beyond ...")
-    assert flat.range_growth == 0.0
-    with_growth = dataclasses.replace(flat, range_growth=1.0)
+    shipped = load_profile("flight_vehicle")  # ships with g = 1 (docs/flight.md, "... bands grown there")
+    assert shipped.range_growth == 1.0
+    flat, with_growth = dataclasses.replace(shipped, range_growth=0.0), shipped
     wide = {m: BandNoise(8.0, 0.4, 20.0, 0.5, current_typical_a=3.8) for m in range(1, 7)}
     model = diagnose(table, paper_motor, flat, wide)["omega_model_rad_s"]
     low, high = np.nanquantile(model, [0.3, 0.7])
@@ -822,9 +822,11 @@ def test_beyond_the_identified_speeds_the_bands_grow_with_the_distance_in_units_
         diagnose(table, paper_motor, with_growth, narrow),
         diagnose(table, paper_motor, flat, narrow),
     )
-    w = grown["omega_model_rad_s"]
+    w, turning = grown["omega_model_rad_s"], grown["omega_judged_rad_s"]
     np.testing.assert_array_equal(w, measured["omega_model_rad_s"])
+    # as far as the motor turns beyond the range too (the lesser of its model's and its speed's distance)
     beyond = np.maximum(np.maximum(w - high, low - w), 0.0)
+    beyond = np.minimum(beyond, np.maximum(np.maximum(turning - high, low - turning), 0.0))
     margin = flat.range_margin  # beyond it only a lost load is judged, in the bands as measured
     within = (w >= (1.0 - margin) * low) & (w <= (1.0 + margin) * high)
     factor = np.where(within, 1.0 + beyond / (high - low), 1.0)
@@ -843,3 +845,9 @@ def test_beyond_the_identified_speeds_the_bands_grow_with_the_distance_in_units_
     rows = NoiseRows.of([known, wide[1]])
     np.testing.assert_allclose(rows.beyond_range(speeds, 0.5, 2.0)[0], [1, 1, 2.25, 1.5625, 1, 1, 1])
     np.testing.assert_array_equal(rows.beyond_range(speeds, 0.5, 2.0)[1], np.ones(7))  # range not known
+    # a motor commanded beyond the range that turns short of it (it lost drive) does not grow; one that
+    # turns beyond as far as commanded does; a speed not known leaves the model's distance
+    turning = np.array([[100.0, 200.0, 190.0, 75.0, np.nan, 301.0, 49.0], [np.nan] * 7])
+    np.testing.assert_allclose(rows.beyond_range(speeds, 0.5, 2.0, turning)[0], [1, 1, 1, 1.5625, 1, 1, 1])
+    short = np.array([[np.nan, np.nan, 225.0, 90.0, np.nan, np.nan, np.nan]] * 2)
+    np.testing.assert_allclose(rows.beyond_range(speeds, 0.5, 2.0, short)[0], [1, 1, 1.5625, 1.21, 1, 1, 1])

@@ -360,7 +360,11 @@ class _ConditionsMath:
         return np.where(np.isfinite(low) & np.isfinite(high), inside, True)
 
     def beyond_range(
-        self, omega_model_rad_s: ArrayLike, margin: float, exponent: float
+        self,
+        omega_model_rad_s: ArrayLike,
+        margin: float,
+        exponent: float,
+        omega_measured_rad_s: ArrayLike | None = None,
     ) -> NDArray[np.float64]:
         """``(1 + d/span)**exponent`` where the model speed lies beyond the range the healthy flight
         covered but within ``margin`` of it (:meth:`in_speed_range`): d how far beyond (above its top or
@@ -368,12 +372,21 @@ class _ConditionsMath:
         lost load is judged there, against σ as measured: rules/judged.py), and where the range is not
         known or has no width. A model fitted over the span is an extrapolation beyond it, whose error
         grows with the distance in units of the span the fit saw (the leverage of a regression's
-        prediction), not in units of the speed."""
+        prediction), not in units of the speed.
+
+        With ``omega_measured_rad_s``, d is the lesser of the model speed's distance and the measured
+        speed's (NaN: the model's alone): a motor carrying a failed sibling's share turns beyond the range
+        as its model says, while one that lost drive or gained friction is commanded beyond it and turns
+        slower than its model, short of it, where growing its bands would hide the fault."""
         w = np.asarray(omega_model_rad_s, dtype=float)
         low, high = self.omega_low_rad_s, self.omega_high_rad_s
         with np.errstate(invalid="ignore", divide="ignore"):
             span = np.asarray(high) - np.asarray(low)
             beyond = np.maximum(np.maximum(w - high, low - w), 0.0)
+            if omega_measured_rad_s is not None:
+                m = np.asarray(omega_measured_rad_s, dtype=float)
+                measured = np.maximum(np.maximum(m - high, low - m), 0.0)
+                beyond = np.where(np.isnan(measured), beyond, np.minimum(beyond, measured))
             factor = (1.0 + beyond / span) ** exponent
         grows = np.isfinite(factor) & (span > 0) & self.in_speed_range(w, margin)
         return np.where(grows, factor, 1.0)

@@ -134,10 +134,12 @@ class ThresholdProfile:
     exceeds the flight's busiest by more than this share, are not judged (the model, or its noise, was
     never checked there; stalls are still named). 0: judged everywhere.
     ``range_growth`` (g ≥ 0, with ``range_margin``): within that margin, beyond the identified speeds, the
-    bands are multiplied by ``(1 + d/span)**g``, d how far the model speed lies beyond the range and span
-    the range's width: the model there is an extrapolation of a curve fitted over the span, and its error
-    grows with the distance in units of the span the fit saw (:meth:`~.noise.NoiseRows.beyond_range`).
-    0, the default: the bands as measured up to the margin.
+    bands are multiplied by ``(1 + d/span)**g``, d how far both the model speed and the speed the motor
+    turns lie beyond the range (the lesser distance: a motor that lost drive is commanded beyond it and
+    turns short) and span the range's width: the model there is an extrapolation of a curve fitted over
+    the span, and its error grows with the distance in units of the span the fit saw
+    (:meth:`~.noise.NoiseRows.beyond_range`). 0, the default: the bands as measured up to the margin
+    (``flight_vehicle`` ships with 1).
     ``conditions_reach`` (≥ 1, with ``noise_bands`` and ``range_margin``): the input activity and the
     pairing error are judged up to this multiple of those limits, where σ is an extrapolation, multiplied
     by ``excess ** conditions_growth`` (≥ 0; excess: how many times the limit the sample lies beyond it),

@@ -170,10 +170,15 @@ class Bands(Rule):
                 torque = frame.noise_as_rows().torque_sigmas(a, e) * widest
             if profile.range_growth > 0 and profile.judges_within_noise_conditions:
                 # beyond the identified speeds (within range_margin) each motor's own model is
-                # extrapolated (noise.py, beyond_range); a torque judged against its siblings' is not: they
-                # share that error at the same speed (siblings.py, "Beyond the identified speeds")
+                # extrapolated (noise.py, beyond_range), as far as the motor also turns beyond them (one
+                # that lost drive is commanded beyond and turns short); a torque judged against its
+                # siblings' is not: they share that error at the same speed (siblings.py, "Beyond the
+                # identified speeds")
                 beyond = frame.noise_as_rows().beyond_range(
-                    frame.omega_model_rad_s, profile.range_margin, profile.range_growth
+                    frame.omega_model_rad_s,
+                    profile.range_margin,
+                    profile.range_growth,
+                    frame.omega_judged_rad_s,
                 )
                 widen_speed, widen_current = widen_speed * beyond, widen_current * beyond
                 if torque is not None:
