@@ -851,3 +851,7 @@ def test_beyond_the_identified_speeds_the_bands_grow_with_the_distance_in_units_
     np.testing.assert_allclose(rows.beyond_range(speeds, 0.5, 2.0, turning)[0], [1, 1, 1, 1.5625, 1, 1, 1])
     short = np.array([[np.nan, np.nan, 225.0, 90.0, np.nan, np.nan, np.nan]] * 2)
     np.testing.assert_allclose(rows.beyond_range(speeds, 0.5, 2.0, short)[0], [1, 1, 1.5625, 1.21, 1, 1, 1])
+    unknown = np.full(speeds.shape, np.nan)
+    np.testing.assert_array_equal(
+        rows.beyond_range(speeds, 0.5, 2.0, unknown), rows.beyond_range(speeds, 0.5, 2.0)
+    )
