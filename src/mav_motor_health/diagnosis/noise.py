@@ -380,12 +380,15 @@ class _ConditionsMath:
         slower than its model, short of it, where growing its bands would hide the fault."""
         w = np.asarray(omega_model_rad_s, dtype=float)
         low, high = self.omega_low_rad_s, self.omega_high_rad_s
+
+        def distance(speed: NDArray[np.float64]) -> NDArray[np.float64]:
+            return np.maximum(np.maximum(speed - high, low - speed), 0.0)
+
         with np.errstate(invalid="ignore", divide="ignore"):
             span = np.asarray(high) - np.asarray(low)
-            beyond = np.maximum(np.maximum(w - high, low - w), 0.0)
+            beyond = distance(w)
             if omega_measured_rad_s is not None:
-                m = np.asarray(omega_measured_rad_s, dtype=float)
-                measured = np.maximum(np.maximum(m - high, low - m), 0.0)
+                measured = distance(np.asarray(omega_measured_rad_s, dtype=float))
                 beyond = np.where(np.isnan(measured), beyond, np.minimum(beyond, measured))
             factor = (1.0 + beyond / span) ** exponent
         grows = np.isfinite(factor) & (span > 0) & self.in_speed_range(w, margin)
