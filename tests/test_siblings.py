@@ -3,6 +3,8 @@ in the order the live agent receives samples, the same whether given whole or in
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from mav_motor_health.diagnosis.siblings import VehicleStage, median_of_finite
@@ -88,6 +90,26 @@ def test_pieces_in_arrival_order_give_what_the_whole_gives() -> None:
 def test_the_median_of_finite_values_needs_enough_of_them() -> None:
     values = rows([[1.0, 5.0, np.nan, 3.0], [np.nan, np.nan, 2.0, np.nan], [4.0, 1.0, 2.0, 3.0]])
     np.testing.assert_array_equal(median_of_finite(values, 2), [3.0, np.nan, 2.5])
+
+
+def test_the_median_of_a_long_stream_by_the_sorting_network_is_the_median() -> None:
+    """A whole log's stream (motors along a short axis, more values than the sort path takes) goes through
+    the sorting network: each place's median of its finite values, NaN where fewer than three are, as
+    numpy's nanmedian gives, and the same values as sorting a short piece of it."""
+    rng = np.random.default_rng(29)
+    values = rng.normal(size=(3, 6, 2000))  # quantities × motors × stream places
+    values[rng.random(values.shape) < 0.35] = np.nan
+    values[0, :, 7] = [1.0, 1.0, np.nan, 1.0, 2.0, -0.0]  # ties and a signed zero
+    count = np.isfinite(values).sum(axis=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # nanmedian of the all-NaN places
+        expected = np.where(count >= 3, np.nanmedian(values, axis=1), np.nan)
+    long = median_of_finite(values, 3, axis=1)
+    assert values.size > 4096 and np.isfinite(long).mean() > 0.5 and set(count.ravel()) >= {0, 3, 6}
+    np.testing.assert_array_equal(long, expected)
+    np.testing.assert_array_equal(median_of_finite(values[:, :, :50], 3, axis=1), long[:, :50])
+    # the rows' layout (motors along the last axis) gives the same
+    np.testing.assert_array_equal(median_of_finite(np.moveaxis(values, 1, 2).reshape(-1, 6), 3), long.ravel())
 
 
 def test_every_quantity_in_one_pass_gives_what_each_alone_gives() -> None:

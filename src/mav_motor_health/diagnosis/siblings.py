@@ -75,8 +75,12 @@ _BEFORE = " before"
 #: faulty motor, or one the model is carried far beyond its identified speeds for); a quadcopter's all but one
 MEDIAN_OF = 3
 #: a call of the stage works out its stream in parts of about this many samples (a whole log's; the live
-#: agent's calls are far shorter): arrays of a few megabytes, in the processor's cache
-STREAM_CHUNK = 8192
+#: agent's calls are far shorter): arrays of about a megabyte, in the processor's cache (of 1024, 2048,
+#: 4096 and 8192, 4096 took the least time over a six-motor hour, ``benchmarks/bench_replay_speed.py``)
+STREAM_CHUNK = 4096
+#: from this many values on, :func:`median_of_finite` orders them with its sorting network (a whole
+#: log's stream; the live agent's calls are sorted)
+_NETWORK_MIN = 4096
 
 
 @dataclass
@@ -171,44 +175,42 @@ class VehicleStage:
         t, v, who, age_limit = t[order], v[:, order], who[order], age_limit[order]
         speeds, trusted = speeds[order], trusted[order]
         # each motor's (column's) latest finite value at or before each place in the stream, every
-        # quantity at once: (quantities, stream, columns)
+        # quantity at once: (quantities, columns, stream), each column's stream contiguous (issue 18)
         k = np.arange(t.size)
-        mine = who[:, None] == np.arange(len(self.motors))[None, :]
-        last = np.maximum.accumulate(
-            np.where(mine[None] & np.isfinite(v)[:, :, None], k[:, None], -1), axis=1
-        )
+        columns = len(self.motors)
+        mine = who[None, :] == np.arange(columns)[:, None]
+        last = np.where(mine[None] & np.isfinite(v)[:, None, :], k, -1)
+        np.maximum.accumulate(last, axis=2, out=last)
         have = last >= 0
-        at = np.maximum(last, 0)
+        at = last  # (−1 where none: an index all the same, every value it picks masked by ``have``)
         # the quantities whose reference is the siblings' median (the predicted one's is the prediction,
         # worked out below from each sibling's latest before the sample's instant)
         predicted = self.prediction is not None and PREDICTED in names
         medians = [q for q, name in enumerate(names) if not (predicted and name == PREDICTED)]
         reference = np.full((len(names), t.size), np.nan)
         if medians:
-            m_at = at[medians]
-            fresh = have[medians] & (t[:, None] - t[m_at] <= age_limit[:, None]) & ~mine[None]
-            latest = np.take_along_axis(v[medians], m_at.reshape(len(medians), -1), axis=1).reshape(
-                m_at.shape
-            )
+            others = np.empty((len(medians), columns, t.size))
             for i, q in enumerate(medians):
+                q_at = at[q]
+                fresh = have[q] & (t - t[q_at] <= age_limit) & ~mine
                 share = self.alike.get(names[q])
                 if share is not None and judging_alike:
                     # a sibling beyond its identified speeds carries the model's error there: a reference
                     # only at this motor's own speed (module doc, "Beyond the identified speeds")
                     with np.errstate(invalid="ignore"):
-                        near = np.abs(speeds[m_at[i]] - speeds[:, None]) <= share * np.abs(speeds[:, None])
-                    fresh[i] &= trusted[m_at[i]] | near
-            need = min(MEDIAN_OF, max(1, len(self.motors) - 2))  # three others, or all but one where fewer
-            others = np.where(fresh, latest, np.nan).reshape(-1, len(self.motors))
-            reference[medians] = median_of_finite(others, need).reshape(len(medians), -1)
+                        near = np.abs(speeds[q_at] - speeds) <= share * np.abs(speeds)
+                    fresh &= trusted[q_at] | near
+                np.copyto(others[i], np.where(fresh, v[q][q_at], np.nan))
+            need = min(MEDIAN_OF, max(1, columns - 2))  # three others, or all but one where fewer
+            reference[medians] = median_of_finite(others, need, axis=1)
         if predicted:
             q = names.index(PREDICTED)
             # each sibling's latest before the sample's own time, never of the same instant (prediction.py,
             # "Before, never of the same instant"): its latest at the place before the instant's first
             first = np.searchsorted(t, t, side="left")
-            before = np.where((first > 0)[:, None], last[q][np.maximum(first - 1, 0)], -1)
-            at_before = np.maximum(before, 0)
-            fresh_before = (before >= 0) & (t[:, None] - t[at_before] <= age_limit[:, None]) & ~mine
+            before = np.where(first > 0, last[q][:, first - 1], -1)
+            at_before = before  # (−1 where none, masked as ``at`` is)
+            fresh_before = (before >= 0) & (t - t[at_before] <= age_limit) & ~mine
             if judging_alike:
                 # a sibling beyond its identified speeds: not in the pattern Σ was measured in
                 fresh_before &= trusted[at_before]
@@ -222,14 +224,14 @@ class VehicleStage:
             def entry(i: int, q: int = q) -> tuple[float, float, float, bool]:
                 return float(t[i]), float(v[q, i]), float(speeds[i]), bool(trusted[i])
 
-            for j in np.flatnonzero(have[q, -1]).tolist():
-                j_at = int(at[q, -1, j])
+            for j in np.flatnonzero(have[q, :, -1]).tolist():
+                j_at = int(at[q, j, -1])
                 kept[self.motors[j]] = entry(j_at)
                 if name == PREDICTED:
                     # and its latest before that instant: what a sibling of that instant still to come
                     # in the next call is predicted from ("Before, never of the same instant")
                     start = int(np.searchsorted(t, t[j_at], side="left"))
-                    earlier = int(last[q, start - 1, j]) if start > 0 else -1
+                    earlier = int(last[q, j, start - 1]) if start > 0 else -1
                     into = self.latest.setdefault(name + _BEFORE, {})
                     if earlier >= 0:
                         into[self.motors[j]] = entry(earlier)
@@ -276,14 +278,15 @@ class VehicleStage:
         who: NDArray[np.intp],
     ) -> NDArray[np.float64]:
         """The siblings' part of each stream place's own value (:meth:`.SiblingPrediction.explained`): each
-        predicted motor's latest fresh value, the place's own motor its own; NaN at a place of a motor the
-        prediction does not know, or where one of its motors has no fresh value."""
+        predicted motor's latest fresh value (``latest`` and ``fresh``: columns × stream), the place's own
+        motor its own; NaN at a place of a motor the prediction does not know, or where one of its motors
+        has no fresh value."""
         assert self.prediction is not None
         column = {m: j for j, m in enumerate(self.motors)}
         where = np.asarray([column[m] for m in self.prediction.motors], dtype=np.intp)
         position = np.full(len(self.motors), -1, dtype=np.intp)
         position[where] = np.arange(where.size)
-        x = np.where(fresh[:, where], latest[:, where], np.nan)
+        x = np.where(fresh[where], latest[where], np.nan).T
         p = position[who]
         known = np.flatnonzero(p >= 0)
         out = np.full(who.size, np.nan)
@@ -326,10 +329,31 @@ def _chunks(time_s: NDArray[np.float64], counts: Sequence[int]) -> NDArray[np.in
     return np.concatenate([np.zeros((len(own), 1), dtype=np.intp), starts, ends], axis=1)
 
 
-def median_of_finite(values: NDArray[np.float64], need: int) -> NDArray[np.float64]:
-    """Each row's median of its finite values; NaN where fewer than ``need`` are finite."""
-    count = np.sum(np.isfinite(values), axis=1)
-    ranked = np.sort(values, axis=1)  # NaN last
-    lo = np.take_along_axis(ranked, np.maximum((count - 1) // 2, 0)[:, None], axis=1)[:, 0]
-    hi = np.take_along_axis(ranked, np.maximum(count // 2, 0)[:, None], axis=1)[:, 0]
-    return np.where(count >= max(need, 1), 0.5 * (lo + hi), np.nan)
+def median_of_finite(values: NDArray[np.float64], need: int, axis: int = 1) -> NDArray[np.float64]:
+    """The median of the finite values along ``axis`` (each row's, by default); NaN where fewer than
+    ``need`` are finite.
+
+    Along a short axis (a vehicle's motors) of a long array (a whole log's stream), the values are put in
+    order by a sorting network of minima and maxima over whole slices (NaN as +inf, last), ``axis`` moved
+    first so that each slice is contiguous: ``np.sort`` along a short axis sorts one row at a time, about
+    twice as slow there (issue 18). A small array (the live agent's call) is sorted, in fewer numpy
+    calls. The same values either way."""
+    x = np.moveaxis(np.asarray(values, dtype=float), axis, 0)
+    finite = np.isfinite(x)
+    count = np.sum(finite, axis=0)
+    n = x.shape[0]
+    if x.size <= _NETWORK_MIN:
+        ranked = np.sort(x, axis=0)  # NaN last
+        lo = np.take_along_axis(ranked, np.maximum((count - 1) // 2, 0)[None], axis=0)[0]
+        hi = np.take_along_axis(ranked, np.maximum(count // 2, 0)[None], axis=0)[0]
+        return np.where(count >= max(need, 1), 0.5 * (lo + hi), np.nan)
+    in_order = list(np.where(finite, x, np.inf))
+    for r in range(n):  # odd-even transposition: n rounds put n values in order
+        for i in range(r % 2, n - 1, 2):
+            a, b = in_order[i], in_order[i + 1]
+            in_order[i], in_order[i + 1] = np.minimum(a, b), np.maximum(a, b)
+    out = np.full(count.shape, np.nan)
+    for c in range(max(need, 1), n + 1):
+        # c finite values: the middle one, or the mean of the middle two
+        np.copyto(out, 0.5 * (in_order[(c - 1) // 2] + in_order[c // 2]), where=count == c)
+    return out
