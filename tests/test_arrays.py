@@ -1,11 +1,13 @@
-"""The hot path's replacements of numpy.nan_to_num and numpy.isin give numpy's own arrays (issue 18)."""
+"""The hot path's replacements of numpy.nan_to_num, numpy.isin and numpy.broadcast_to give numpy's own
+arrays (issue 18), and the plain-int state codes are the enum's."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from mav_motor_health._arrays import nan_to_zero, one_of
+from mav_motor_health._arrays import broadcast_to, nan_to_zero, one_of
+from mav_motor_health.diagnosis.states import Code, MotorState
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
@@ -28,3 +30,26 @@ def test_one_of_is_isin() -> None:
     states = rng.integers(0, 13, (6, 40)).astype(np.int8)
     for codes in ((), (3,), (1, 3, 4), (2, 5, 7, 8, 10, 12)):
         np.testing.assert_array_equal(one_of(states, codes), np.isin(states, codes))
+
+
+def test_one_of_takes_enum_members_as_their_codes() -> None:
+    states = np.array([[0, 1, 3], [4, 6, 1]], dtype=np.int8)
+    codes = (MotorState.F1_1, MotorState.UNKNOWN)
+    np.testing.assert_array_equal(one_of(states, codes), np.isin(states, [1, 6]))
+
+
+def test_broadcast_to_is_numpys_and_gives_an_array_of_that_shape_back_as_it_is() -> None:
+    x = np.arange(6.0).reshape(2, 3)
+    assert broadcast_to(x, (2, 3)) is x
+    for values, shape in ((x[:1], (2, 3)), (x[:, :1], (2, 3)), (2.5, (3,)), (x[0], (4, 3))):
+        got, want = broadcast_to(values, shape), np.broadcast_to(values, shape)
+        assert got.shape == want.shape and got.dtype == want.dtype
+        np.testing.assert_array_equal(got, want)
+    with pytest.raises(ValueError):
+        broadcast_to(x, (3, 2))
+
+
+def test_each_plain_state_code_is_its_states() -> None:
+    for state in MotorState:
+        code = getattr(Code, state.name)
+        assert type(code) is int and code == int(state)

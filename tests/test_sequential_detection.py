@@ -15,6 +15,7 @@ from mav_motor_health.diagnosis.detection import (
     DIRECTIONS,
     SequentialCarry,
     SequentialRule,
+    _lindley,
     average_run_length,
     design_threshold,
     direction_evidence,
@@ -449,3 +450,25 @@ def test_the_slow_looks_evidence_counts_for_the_fewer_observations_it_gives() ->
     np.testing.assert_array_equal(out[f11], evidence[f11])
     np.testing.assert_array_equal(with_slow_evidence(evidence, state, None, 2.5, 4.0), evidence)
     np.testing.assert_array_equal(with_slow_evidence(evidence, state, slow, 2.5, 0.0), evidence)
+
+
+def test_the_closed_form_sums_and_alarms_are_the_step_by_step_cusums() -> None:
+    """``S ← max(0, S + step)``, an alarm from S ≥ h until S is back at 0, from a carried S and alarm:
+    the closed form over whole rows (issue 18: one running count and one running maximum) against the
+    recurrence sample by sample, rows that start alarmed or not, at 0 or not, some crossing h often."""
+    rng = np.random.default_rng(23)
+    h = 3.0
+    steps = rng.normal(-0.4, 1.2, (2, 5, 400))
+    steps[:, :, 50:60] = 0.0  # exactly 0: stays where it is
+    start_sum = np.array([[0.0, 2.0, 5.0, 0.0, 1.0], [4.0, 0.0, 0.5, 3.0, 0.0]])
+    start_alarm = np.array([[False, True, True, False, True], [True, False, False, True, True]])
+    sums, alarms = _lindley(steps, start_sum, start_alarm, h)
+    for d in range(2):
+        for r in range(5):
+            s, alarm = start_sum[d, r], bool(start_alarm[d, r])
+            for n in range(steps.shape[2]):
+                s = max(0.0, s + steps[d, r, n])
+                alarm = (alarm or s >= h) and s > 0.0
+                assert sums[d, r, n] == pytest.approx(s, abs=1e-9)
+                assert alarms[d, r, n] == alarm, (d, r, n)
+    assert alarms.any() and not alarms.all() and (sums == 0).any()

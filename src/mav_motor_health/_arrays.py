@@ -14,10 +14,18 @@ from collections.abc import Iterable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["distinct", "nan_to_zero", "one_of"]
+__all__ = ["broadcast_to", "distinct", "nan_to_zero", "one_of"]
 
 #: codes below this are counted by :func:`distinct` (a table of this many counts at most)
 DISTINCT_COUNTED = 1 << 16
+
+
+def broadcast_to(values: ArrayLike, shape: tuple[int, ...]) -> NDArray:
+    """:func:`numpy.broadcast_to`, but an array that has ``shape`` already is given back as it is (numpy's
+    Python-level wrapper costs about 5 µs a call, on the live agent's hot path a few dozen times a core
+    call). The same values; the caller must not write into the result (numpy's view is read-only)."""
+    x = np.asarray(values)
+    return x if x.shape == shape else np.broadcast_to(x, shape)
 
 
 def nan_to_zero(values: ArrayLike) -> NDArray:
@@ -32,11 +40,12 @@ def nan_to_zero(values: ArrayLike) -> NDArray:
 
 
 def one_of(values: ArrayLike, codes: Iterable[int]) -> NDArray[np.bool_]:
-    """:func:`numpy.isin` for a few integer codes: where ``values`` is one of them."""
+    """:func:`numpy.isin` for a few integer codes: where ``values`` is one of them (an enum member is
+    compared as its int: as a numpy operand it costs more than the comparison, ``diagnosis.states.Code``)."""
     x = np.asarray(values)
     out = np.zeros(x.shape, dtype=bool)
     for code in codes:
-        out |= x == code
+        out |= x == int(code)
     return out
 
 

@@ -108,7 +108,7 @@ from scipy.special import ndtr
 from .._arrays import nan_to_zero
 from ..errors import ConfigError
 from ..model.dynamics import marked_before
-from .states import MotorState
+from .states import Code, MotorState
 
 __all__ = [
     "CAPPED_DIRECTIONS",
@@ -287,7 +287,7 @@ def held_states(
     "Once announced"): those samples read as the announced fault. Returns them, and each sample's
     departure in the announced direction [σ] (0 where none is announced)."""
     toward = evidence_toward(evidence, alarms)
-    held = (toward >= hold_sigmas) & judged & (np.asarray(state) == MotorState.NORMAL)
+    held = (toward >= hold_sigmas) & judged & (np.asarray(state) == Code.NORMAL)
     return held, toward
 
 
@@ -534,10 +534,10 @@ def sequential_alarms_rows(
     ratio = np.where(alarms, sums / h, 0.0)
     strongest = np.argmax(ratio, axis=0)
     codes = np.array([int(d) for d in DIRECTIONS], dtype=np.int8)
-    announced = np.where(alarms.any(axis=0), codes[strongest], MotorState.NORMAL).astype(np.int8)
+    announced = np.where(alarms.any(axis=0), codes[strongest], Code.NORMAL).astype(np.int8)
     level = (sums / h).max(axis=0)
     padding = position >= lengths[:, None]  # beyond a row's own samples: NORMAL, no level
-    announced[padding], level[padding] = MotorState.NORMAL, np.nan
+    announced[padding], level[padding] = Code.NORMAL, np.nan
     # each row's carry: its last sample's state (its last judged one's, or the carried one)
     end = np.maximum(lengths - 1, 0)
     end_sums = sums[:, np.arange(rows), end].T.tolist()
@@ -567,15 +567,21 @@ def _lindley(
     from ``start_sum`` (directions × rows), in closed form: ``S_n = W_n − min(−S_0, min_j W_j)``; and
     the alarm at each sample (:func:`_latched`, ``start_alarm`` carried in)."""
     w = np.cumsum(steps, axis=-1)
-    lowest = np.minimum(np.minimum.accumulate(w, axis=-1), -start_sum[..., None])
-    sums = w - lowest
+    sums = np.minimum.accumulate(w, axis=-1)  # the lowest W so far, then S in its place
+    np.minimum(sums, -start_sum[..., None], out=sums)
+    np.subtract(w, sums, out=sums)
     return sums, _latched(sums, h, start_alarm)
 
 
 def _latched(sums: NDArray[np.float64], h: float, start: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """Alarm at each sample (along the last axis): S reached h since it was last 0 (``start``: an alarm
-    carried in)."""
-    pos = np.arange(sums.shape[-1])
-    last_zero = np.maximum.accumulate(np.where(sums <= 0.0, pos, -1), axis=-1)
-    last_cross = np.maximum.accumulate(np.where(sums >= h * (1.0 - _H_ROUNDING), pos, -1), axis=-1)
-    return (last_cross > last_zero) | (start[..., None] & (last_zero < 0))
+    carried in).
+
+    Each return to 0 opens a stretch (``stretch``: how many returns so far); an alarm stands where S
+    reached h in the sample's own stretch (h > 0: never at a return itself), the carried one in the
+    first stretch, before any return. One running count and one running maximum, over 32-bit
+    integers (a whole log's six directions are a few million samples: issue 18)."""
+    stretch = np.cumsum(sums <= 0.0, axis=-1, dtype=np.int32)
+    crossed_in = np.where(sums >= h * (1.0 - _H_ROUNDING), stretch, np.int32(-1))
+    np.maximum.accumulate(crossed_in, axis=-1, out=crossed_in)
+    return (crossed_in == stretch) | (start[..., None] & (stretch == 0))

@@ -127,7 +127,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._arrays import nan_to_zero
+from .._arrays import broadcast_to, nan_to_zero
 from ..errors import ConfigError
 from ..model.lsq import fit_linear
 from ..telemetry.table import TelemetryTable
@@ -472,7 +472,7 @@ def after_step_factor(
     row = (
         np.zeros(since.shape, dtype=np.intp)
         if table.shape[0] == 1
-        else np.broadcast_to(np.arange(table.shape[0])[:, None], since.shape)
+        else broadcast_to(np.arange(table.shape[0])[:, None], since.shape)
     )
     bins = np.clip((since[within] / settle_s * AFTER_STEP_BINS).astype(int), 0, AFTER_STEP_BINS - 1)
     factor[within] = table[row[within], bins]
@@ -907,11 +907,17 @@ def _grown(
     a: NDArray[np.float64],
     e: NDArray[np.float64] | None,
 ) -> NDArray[np.float64]:
-    """σ(a, e) = √(σ₀² + (c·a)² + (p·e)²); the pairing's term only where ``e`` is given and p > 0."""
-    out = np.hypot(sigma, per_activity * a)
-    return (
-        np.where(np.asarray(per_pairing) > 0, np.hypot(out, per_pairing * e), out) if e is not None else out
-    )
+    """σ(a, e) = √(σ₀² + (c·a)² + (p·e)²); the pairing's term only where ``e`` is given and p > 0.
+
+    As written, one square root of the sum (not ``np.hypot``, which guards against overflow these
+    physical values never come near and took about seven times as long: the noise bands' largest share of
+    a whole-log diagnosis, issue 18); within a rounding of ``np.hypot``'s."""
+    grown = per_activity * a
+    square = sigma * sigma + grown * grown
+    if e is not None:
+        paired = per_pairing * e
+        square = np.where(np.asarray(per_pairing) > 0, square + paired * paired, square)
+    return np.sqrt(square)
 
 
 def _equation_of(values: Mapping[str, float], keys: tuple[str, ...]) -> EquationNoise | None:

@@ -57,7 +57,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._arrays import nan_to_zero
+from .._arrays import broadcast_to, nan_to_zero
 from ..model.balance import linearised_slopes
 from ..model.dynamics import ResponseCarry, first_order_responses, last_of, previous
 from ..model.params import MotorParams
@@ -324,7 +324,7 @@ def pairing_error_rad_s(
         return np.zeros(0), carry
 
     def row(x: ArrayLike) -> NDArray[np.float64]:
-        return np.broadcast_to(np.asarray(x, dtype=float), t.shape).reshape(1, -1)
+        return broadcast_to(np.asarray(x, dtype=float), t.shape).reshape(1, -1)
 
     error, (new,) = pairing_error_rows(
         params, row(t), row(voltage_v), row(omega_model_rad_s), row(pairing_s), row(tau_s), [carry]
@@ -357,7 +357,7 @@ def pairing_error_rows(
         moved = np.abs(v - previous_v)
         if input_excursion_v is not None:  # down e and back up e between the two samples
             moved = moved + 2.0 * nan_to_zero(
-                np.broadcast_to(np.asarray(input_excursion_v, dtype=float), t.shape)
+                broadcast_to(np.asarray(input_excursion_v, dtype=float), t.shape)
             )
         rate = moved / (t - previous_t)
     rate = np.where(np.isfinite(rate) & (t > previous_t), rate, np.nan)  # NaN holds the low-pass
@@ -367,7 +367,7 @@ def pairing_error_rows(
     loosest = np.zeros(t.shape)  # per sample: each one's loosest pairing of the window
     recent = [(c.recent_time_s, c.recent_pairing_s) for c in carries]
     if per_sample:
-        u_rows = np.broadcast_to(np.asarray(pairing_s, dtype=float), t.shape)
+        u_rows = broadcast_to(np.asarray(pairing_s, dtype=float), t.shape)
         together = _loosest_pairing_rows(t, u_rows, counts, recent) if rows > 1 else None
         if together is not None:  # every motor's few samples at once (the live agent's call)
             loosest, recent = together

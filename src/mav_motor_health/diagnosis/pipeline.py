@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._arrays import broadcast_to
 from ..model.params import MotorParams, MotorRows, same_type
 from ..telemetry.table import TelemetryTable
 from .noise import BandNoise, require_noise
@@ -523,7 +524,7 @@ def _result_columns(frame: Frame) -> dict[str, NDArray]:
         "sensor_flags": frame.sensor_flags,
         "omega_judged_rad_s": frame.omega_judged_rad_s,
         "current_judged_a": frame.current_judged_a,
-        "speed_band_rad_s": np.broadcast_to(frame.speed_band_rad_s, shape).astype(float),
+        "speed_band_rad_s": broadcast_to(frame.speed_band_rad_s, shape).astype(float),
         "current_band_a": frame.current_band_a,
         "current_band_below_a": frame.current_band_below_a,
         "input_activity_v": nan_unless(frame.activity_v),

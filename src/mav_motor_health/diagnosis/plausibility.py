@@ -65,14 +65,16 @@ class SensorIssue(enum.IntFlag):
         return ",".join(names) if names else "ok"
 
 
-CURRENT_UNTRUSTED = (
+#: the flags that set the current (the speed) aside, as plain ints: masks for numpy on the core's hot path,
+#: where an enum operand costs more than the operation (states.Code)
+CURRENT_UNTRUSTED = int(
     SensorIssue.CURRENT_MISSING
     | SensorIssue.CURRENT_STUCK
     | SensorIssue.CURRENT_RANGE
     | SensorIssue.CURRENT_SUM
     | SensorIssue.CURRENT_UNPAIRED
 )
-SPEED_UNTRUSTED = SensorIssue.SPEED_MISSING | SensorIssue.SPEED_STUCK | SensorIssue.SPEED_RANGE
+SPEED_UNTRUSTED = int(SensorIssue.SPEED_MISSING | SensorIssue.SPEED_STUCK | SensorIssue.SPEED_RANGE)
 
 
 @dataclass(frozen=True)
@@ -243,10 +245,10 @@ def check_motor_rows(
     t, i, w = time_s, sensor_current_a, omega_rad_s
     cmd = np.full(t.shape, np.nan) if command is None else command
     flags = np.zeros(t.shape, dtype=np.int16)
-    flags[~np.isfinite(i)] |= SensorIssue.CURRENT_MISSING
-    flags[~np.isfinite(w)] |= SensorIssue.SPEED_MISSING
-    flags[(i < rule.current_min_a) | (i > rule.current_max_a)] |= SensorIssue.CURRENT_RANGE
-    flags[(w < 0) | (w > rule.speed_max_rad_s)] |= SensorIssue.SPEED_RANGE
+    flags[~np.isfinite(i)] |= int(SensorIssue.CURRENT_MISSING)
+    flags[~np.isfinite(w)] |= int(SensorIssue.SPEED_MISSING)
+    flags[(i < rule.current_min_a) | (i > rule.current_max_a)] |= int(SensorIssue.CURRENT_RANGE)
+    flags[(w < 0) | (w > rule.speed_max_rad_s)] |= int(SensorIssue.SPEED_RANGE)
     # the current's and the speed's stuck checks in one call: the same samples and commands
     rows = t.shape[0]
     stuck, stuck_carries = stuck_mask_rows(
@@ -257,8 +259,10 @@ def check_motor_rows(
         [c.current for c in carries] + [c.speed for c in carries],
         None if lengths is None else lengths * 2,
     )
-    flags[stuck[:rows]] |= SensorIssue.CURRENT_STUCK
-    flags[stuck[rows:] & (w > 0)] |= SensorIssue.SPEED_STUCK  # a motor at rest reads 0 whatever its command
+    flags[stuck[:rows]] |= int(SensorIssue.CURRENT_STUCK)
+    flags[stuck[rows:] & (w > 0)] |= int(
+        SensorIssue.SPEED_STUCK
+    )  # a motor at rest reads 0 whatever its command
     news = [PlausibilityCarry(current=stuck_carries[r], speed=stuck_carries[rows + r]) for r in range(rows)]
     return flags, news
 

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._arrays import broadcast_to
 from ..model.dynamics import last_of
 
 if TYPE_CHECKING:
@@ -112,6 +113,6 @@ def stop_speeds(
     stop = np.maximum(profile.stop_speed_rad_s, profile.stop_speed_fraction * expected)
     floor: NDArray[np.float64] | float = profile.stop_speed_rad_s
     if cap_rad_s is not None:
-        cap = np.broadcast_to(np.asarray(cap_rad_s, dtype=float), stop.shape)
+        cap = broadcast_to(np.asarray(cap_rad_s, dtype=float), stop.shape)
         stop, floor = np.fmin(stop, cap), np.fmin(floor, cap)
     return stop, floor

@@ -7,7 +7,7 @@ import enum
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["MotorState", "state_names"]
+__all__ = ["Code", "MotorState", "state_names"]
 
 
 class MotorState(enum.IntEnum):
@@ -94,6 +94,32 @@ _FAULTS = frozenset(
         MotorState.FAST,
     }
 )
+
+
+class Code:
+    """Each :class:`MotorState`'s code as a plain ``int``, for numpy expressions on the core's hot paths.
+
+    An enum member as a numpy operand (``state == MotorState.F1_1``, ``np.where(..., MotorState.NORMAL,
+    ...)``) costs about 1.5–2.5 µs more than an int on Python 3.11: numpy looks up ``__array_ufunc__`` and
+    ``__array_function__`` on its type, and the enum's metaclass answers each miss by raising
+    AttributeError. A core call of the live agent made about a hundred such lookups (issue 18)."""
+
+    # (in the enum's order: tests/test_arrays.py checks each name's code)
+    (
+        NORMAL,
+        F1_1,
+        F2_1,
+        F3_1,
+        F4_1,
+        F4_2,
+        UNKNOWN,
+        NO_DATA,
+        SENSOR_FAULT,
+        SLOW,
+        STALLED,
+        FAST,
+        UNCALIBRATED,
+    ) = map(int, MotorState)
 
 
 def state_names(codes: NDArray[np.integer]) -> NDArray[np.str_]:

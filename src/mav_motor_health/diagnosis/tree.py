@@ -98,9 +98,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._arrays import broadcast_to
 from .profile import ThresholdProfile
 from .stall import stop_speeds
-from .states import MotorState
+from .states import Code
 
 __all__ = ["agreeing_departures", "classify", "classify_depth"]
 
@@ -174,14 +175,14 @@ def classify_depth(
             for x in (omega_rad_s, omega_model_rad_s, current_a, current_model_a, voltage_v)
         )
     )
-    activity = None if activity_v is None else np.broadcast_to(np.asarray(activity_v, dtype=float), w.shape)
+    activity = None if activity_v is None else broadcast_to(np.asarray(activity_v, dtype=float), w.shape)
     if bands is None:
         band_w = profile.speed_band(activity)
         band_i = profile.current_halfwidth_a(v, activity)
         band_i_low = profile.current_halfwidth_a(v, activity, below=True)
     else:
         band_w, band_i, band_i_low = bands
-    split = np.broadcast_to(
+    split = broadcast_to(
         profile.stall_split(bus_voltage_v)
         if stall_split_a is None
         else np.asarray(stall_split_a, dtype=float),
@@ -192,7 +193,7 @@ def classify_depth(
     band_up: NDArray[np.float64] | float = band_w
     if omega_free_rad_s is not None:
         # Rule 2: no fault lifts the speed above V/k_e; near it, a share f of the headroom is the band...
-        headroom = np.broadcast_to(np.asarray(omega_free_rad_s, dtype=float), w.shape) - w_model
+        headroom = broadcast_to(np.asarray(omega_free_rad_s, dtype=float), w.shape) - w_model
         # ... but never below half the band, the speed noise (near idle the headroom vanishes, the noise not)
         narrowed = np.clip(profile.free_speed_headroom_fraction * headroom, 0.5 * band_w, band_w)
         band_up = np.where(np.isfinite(narrowed), narrowed, band_w)
@@ -207,59 +208,52 @@ def classify_depth(
         less = np.maximum(i_model - i, 0.0) / band_i_low
         more = np.maximum(i - i_model, 0.0) / band_i
     # Rule 1 needs the model to expect a turning motor: an idle or disarmed motor is not a stalled one.
-    expected = w_model if omega_expected_rad_s is None else np.broadcast_to(omega_expected_rad_s, w.shape)
+    expected = w_model if omega_expected_rad_s is None else broadcast_to(omega_expected_rad_s, w.shape)
     # never above what the lowest input given so far drives a healthy motor at, where capped
     stop, floor = stop_speeds(profile, expected, stop_cap_rad_s)
     # (the band's margin at most the stop speed itself: a vehicle's noise band may be wide in gusts, and a
     # motor expected at twice the stop speed is turning by any measure)
     stopped = (np.abs(w) < stop) & (expected >= floor + np.minimum(band_w, floor))
 
-    state = np.full(w.shape, MotorState.UNKNOWN, dtype=np.int8)
+    state = np.full(w.shape, Code.UNKNOWN, dtype=np.int8)
     not_high = ~speed_high
-    state[not_high & current_high] = MotorState.F1_1
-    state[not_high & ~current_high] = MotorState.F4_1
-    state[not_high & ~speed_low & ~current_low & ~current_high] = MotorState.NORMAL
-    state[speed_high & current_low] = MotorState.F3_1
+    state[not_high & current_high] = Code.F1_1
+    state[not_high & ~current_high] = Code.F4_1
+    state[not_high & ~speed_low & ~current_low & ~current_high] = Code.NORMAL
+    state[speed_high & current_low] = Code.F3_1
     if joint > 0:
-        normal = state == MotorState.NORMAL
-        state[normal & (slower > 0) & (more > 0) & (slower + more >= joint)] = MotorState.F1_1
-        state[normal & (slower > 0) & (less > 0) & (slower + less >= joint)] = MotorState.F4_1
+        normal = state == Code.NORMAL
+        state[normal & (slower > 0) & (more > 0) & (slower + more >= joint)] = Code.F1_1
+        state[normal & (slower > 0) & (less > 0) & (slower + less >= joint)] = Code.F4_1
         # F3.1 also where the paper says F4.1 ("current low, speed inside its band") with a rising speed
-        state[(faster > 0) & (less > 0) & (faster + less >= joint)] = MotorState.F3_1
-    state[stopped] = np.where(i[stopped] < split[stopped], MotorState.F2_1, MotorState.F4_2)
+        state[(faster > 0) & (less > 0) & (faster + less >= joint)] = Code.F3_1
+    state[stopped] = np.where(i[stopped] < split[stopped], Code.F2_1, Code.F4_2)
     missing = ~(np.isfinite(w) & np.isfinite(w_model) & np.isfinite(i) & np.isfinite(i_model))
-    state[missing] = MotorState.NO_DATA
+    state[missing] = Code.NO_DATA
     # Speed only, where the current is absent or untrusted: say what speed can say, and no more.
-    speed_only = ~np.isfinite(i) if current_trusted is None else ~np.broadcast_to(current_trusted, w.shape)
+    speed_only = ~np.isfinite(i) if current_trusted is None else ~broadcast_to(current_trusted, w.shape)
     speed_only = speed_only & np.isfinite(w) & np.isfinite(w_model)
     if np.any(speed_only):
         # Without current a model error cannot be told from a fault: ask for a large departure.
         wide = profile.speed_only_band(band_w, w_model)
-        only = np.full(w.shape, MotorState.NORMAL, dtype=np.int8)
-        only[w < w_model - wide] = MotorState.SLOW
-        only[w > w_model + wide] = MotorState.FAST
-        only[stopped] = MotorState.STALLED
+        only = np.full(w.shape, Code.NORMAL, dtype=np.int8)
+        only[w < w_model - wide] = Code.SLOW
+        only[w > w_model + wide] = Code.FAST
+        only[stopped] = Code.STALLED
         state[speed_only] = only[speed_only]
     # Depth: the departure measured in bands (1 on the state's boundary; see "Depth")
     pair = joint if joint > 0 else np.inf
     depth = np.ones(w.shape)
     if not np.any(
-        (state == MotorState.F1_1)
-        | (state == MotorState.F3_1)
-        | (state == MotorState.F4_1)
-        | (state == MotorState.UNKNOWN)
+        (state == Code.F1_1) | (state == Code.F3_1) | (state == Code.F4_1) | (state == Code.UNKNOWN)
     ):
         return state, depth
     with np.errstate(invalid="ignore"):
         # (each state's depth copied in where the state is: the values of indexing, without gathering them)
-        np.copyto(depth, np.fmax(more, (slower + more) / pair), where=state == MotorState.F1_1)
-        np.copyto(
-            depth, np.fmax(np.fmax(slower, less), (slower + less) / pair), where=state == MotorState.F4_1
-        )
-        np.copyto(
-            depth, np.fmax(np.fmin(faster, less), (faster + less) / pair), where=state == MotorState.F3_1
-        )
-        np.copyto(depth, faster, where=state == MotorState.UNKNOWN)
+        np.copyto(depth, np.fmax(more, (slower + more) / pair), where=state == Code.F1_1)
+        np.copyto(depth, np.fmax(np.fmax(slower, less), (slower + less) / pair), where=state == Code.F4_1)
+        np.copyto(depth, np.fmax(np.fmin(faster, less), (faster + less) / pair), where=state == Code.F3_1)
+        np.copyto(depth, faster, where=state == Code.UNKNOWN)
     depth = np.where(np.isfinite(depth), np.maximum(depth, 1.0), 1.0)
     depth[speed_only] = 1.0
     return state, depth
@@ -284,7 +278,7 @@ def agreeing_departures(
     with np.errstate(divide="ignore", invalid="ignore"):
         share_w = d_omega_rad_s / band_omega_rad_s
         share_i = d_current_a / band_current_a
-    state = np.full(share_w.shape, MotorState.NORMAL, dtype=np.int8)
+    state = np.full(share_w.shape, Code.NORMAL, dtype=np.int8)
     depth = np.ones(share_w.shape)
     total = np.abs(share_w) + np.abs(share_i)
     with np.errstate(invalid="ignore"):
@@ -294,9 +288,9 @@ def agreeing_departures(
         slower, faster = share_w < 0, share_w > 0
         # as in the tree: slower than the band with the current inside it is not friction (the paper's
         # F4.1; here named only once the current falls too)
-        state[named & slower & (share_i > 0) & ((share_w >= -1) | (share_i >= 1))] = MotorState.F1_1
-        state[named & slower & (share_i < 0)] = MotorState.F4_1
-        state[named & faster & (share_i < 0)] = MotorState.F3_1
-    fault = state != MotorState.NORMAL
+        state[named & slower & (share_i > 0) & ((share_w >= -1) | (share_i >= 1))] = Code.F1_1
+        state[named & slower & (share_i < 0)] = Code.F4_1
+        state[named & faster & (share_i < 0)] = Code.F3_1
+    fault = state != Code.NORMAL
     depth[fault] = total[fault] / band_sum
     return state, depth

@@ -81,7 +81,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import ndtr, ndtri
 
-from .._arrays import nan_to_zero
+from .._arrays import broadcast_to, nan_to_zero
 from .dynamics import ResponseCarry, first_order_responses, last_of, previous
 from .equations import current_from_speed, steady_state
 from .params import MotorParams
@@ -497,7 +497,7 @@ def balance_deviations_rows(
         current_mean_a=i_mean,
         activity_v=activity,
         zigzag_v=zigzag,
-        tau_s=np.broadcast_to(np.asarray(tau, dtype=float), t.shape),
+        tau_s=broadcast_to(np.asarray(tau, dtype=float), t.shape),
         torque_residual_nm=torque,
         voltage_residual_v=rv_mean,
     )

@@ -26,6 +26,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._arrays import broadcast_to
 from .params import MotorParams
 
 __all__ = [
@@ -120,7 +121,7 @@ def first_order_responses(
     t = t.reshape(-1, n)
     x = np.asarray(targets, dtype=float).reshape(rows, n)
     tau = np.asarray(tau_s, dtype=float)
-    tau = np.broadcast_to(tau, (1, n)) if tau.ndim < 2 else np.broadcast_to(tau, (tau.shape[0], n))
+    tau = broadcast_to(tau, (1, n)) if tau.ndim < 2 else broadcast_to(tau, (tau.shape[0], n))
     counts = [n] * rows if lengths is None else [int(k) for k in lengths]
     if rows * n <= _SCALAR_MAX:
         return _responses_scalar(t, x, tau, carries, counts)
@@ -231,7 +232,7 @@ def _responses_one_time_row(
     if all_finite and decay.shape[0] == 1 and (a_first == a_first[0]).all():
         row = np.empty(n)
         row[0], row[1:] = a_first[0], a_rest[0]
-        a = np.broadcast_to(row, (rows, n))
+        a = broadcast_to(row, (rows, n))
         one_minus: FloatArray = 1.0 - row
     else:
         a = np.empty((rows, n))
@@ -255,7 +256,7 @@ def _responses_one_time_row(
     columns = np.flatnonzero(unlagged.any(axis=0))
     if columns.size:
         at = columns + 1
-        restart = np.broadcast_to(unlagged[:, columns], (rows, columns.size)) & finite[:, at]
+        restart = broadcast_to(unlagged[:, columns], (rows, columns.size)) & finite[:, at]
         b[:, at] = np.where(restart, x[:, at], b[:, at])
     y0 = np.where(new, 0.0, carry_y)
     first = np.zeros(rows, dtype=np.int64)
@@ -371,7 +372,7 @@ def affine_recurrence(a: ArrayLike, b: ArrayLike, y0: ArrayLike) -> FloatArray:
     a2 = a_in.reshape(1, -1) if a_in.ndim == 1 else a_in
     b2 = np.asarray(b, dtype=float).reshape(a2.shape)
     series, n = a2.shape
-    start = np.broadcast_to(np.asarray(y0, dtype=float), (series,))
+    start = broadcast_to(np.asarray(y0, dtype=float), (series,))
     if n <= 2 * _COLUMNS:
         out = np.empty((series, n))
         if series * n <= _LOOP_MAX and series <= _LOOP_SERIES:
@@ -400,7 +401,7 @@ def affine_recurrence(a: ArrayLike, b: ArrayLike, y0: ArrayLike) -> FloatArray:
         np.multiply(gain3[j], local3[j - 1], out=scratch)
         local3[j] += scratch
         gain3[j] *= gain3[j - 1]  # the product of the a's since each row began
-    ends = affine_recurrence(np.broadcast_to(gain3[-1], (series, rows)), local3[-1], start)
+    ends = affine_recurrence(broadcast_to(gain3[-1], (series, rows)), local3[-1], start)
     starts = np.empty((series, rows))
     starts[:, 0] = start
     starts[:, 1:] = ends[:, :-1]
@@ -453,7 +454,7 @@ def _response_scalar(
     t: FloatArray, x: FloatArray, tau: FloatArray, carry: ResponseCarry
 ) -> tuple[FloatArray, ResponseCarry]:
     """:func:`first_order_response` for a few samples, sample by sample (the recurrence's definition)."""
-    tau_row = np.broadcast_to(tau, t.shape).reshape(1, -1)
+    tau_row = broadcast_to(tau, t.shape).reshape(1, -1)
     out, (new,) = _responses_scalar(t.reshape(1, -1), x.reshape(1, -1), tau_row, (carry,), [t.size])
     return out[0], new
 

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from ..._arrays import broadcast_to
 from ..noise import after_step_factor
 from .base import Frame, Rule
 
@@ -47,7 +48,7 @@ class AgainstSiblings(Rule):
             frame.sigma_speed_rad_s, frame.sigma_current_a = rows.sigmas(a, e)
         identified = frame.sigma_speed_rad_s
         own = identified
-        sigma = np.broadcast_to(rows.against_sigmas(a, e), frame.shape)
+        sigma = broadcast_to(rows.against_sigmas(a, e), frame.shape)
         if frame.since_step_s is not None:
             # after a step each is wider by its own measured widening (the deviation's is in the band)
             settle_s = float(getattr(self.profile.steady, "settle_s", 0.0))
@@ -60,7 +61,7 @@ class AgainstSiblings(Rule):
         frame.omega_judged_rad_s = np.where(
             use, frame.omega_judged_rad_s - explained, frame.omega_judged_rad_s
         )
-        frame.speed_band_rad_s = np.broadcast_to(frame.speed_band_rad_s, frame.shape) * ratio
+        frame.speed_band_rad_s = broadcast_to(frame.speed_band_rad_s, frame.shape) * ratio
         # the σ the band holds its number of: the slow look reads the fast band in it (rules/tree.py)
         frame.sigma_speed_rad_s = identified * ratio
         return carries

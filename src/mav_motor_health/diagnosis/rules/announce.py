@@ -20,7 +20,7 @@ from ..detection import (
     with_slow_evidence,
 )
 from ..persistence import PersistenceCarry, announce
-from ..states import MotorState
+from ..states import Code, MotorState
 from .base import Frame, Rule
 
 if TYPE_CHECKING:
@@ -129,7 +129,7 @@ class Persistence(Rule):
         hold_s, hold_per_activity_s = rule.hold_s(), rule.hold_per_activity_s()
         persisted = state
         if frame.announced_elsewhere:
-            persisted = np.where(one_of(state, frame.announced_elsewhere), MotorState.NORMAL, state)
+            persisted = np.where(one_of(state, frame.announced_elsewhere), Code.NORMAL, state)
             persisted = persisted.astype(state.dtype)
         announced = np.zeros(t.shape, dtype=np.int8)
         new = list(carries)
@@ -146,6 +146,6 @@ class Persistence(Rule):
                 rate=None if rate is None else rate[r, :count],
             )
         if frame.alarms is not None:
-            announced = np.where(announced == MotorState.NORMAL, frame.alarms, announced).astype(np.int8)
+            announced = np.where(announced == Code.NORMAL, frame.alarms, announced).astype(np.int8)
         frame.announced = announced
         return new

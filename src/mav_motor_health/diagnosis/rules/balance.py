@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._arrays import nan_to_zero
+from ..._arrays import broadcast_to, nan_to_zero
 from ...errors import ConfigError
 from ...model.balance import BalanceCarry, balance_deviations_rows
 from ...model.dynamics import ResponseCarry, first_order_responses, last_of, previous
@@ -127,7 +127,7 @@ class BalanceRule(CompareRule):
         voltage over ``bus_ref_v`` where the rule scales with it and the sample has one, else 1."""
         if not self.bus_ref_v > 0 or frame.bus_voltage_v is None:
             return 1.0
-        bus = np.broadcast_to(np.asarray(frame.bus_voltage_v, dtype=float), frame.shape)
+        bus = broadcast_to(np.asarray(frame.bus_voltage_v, dtype=float), frame.shape)
         with np.errstate(invalid="ignore"):
             return np.where(np.isfinite(bus) & (bus > 0), bus / self.bus_ref_v, 1.0)
 

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from ..._arrays import broadcast_to
 from ...model.dynamics import affine_recurrence, marked_before
 from .base import Frame, Rule
 
@@ -166,7 +167,7 @@ class Bands(Rule):
                 step = np.where(np.isfinite(after), after, 1.0)
                 widen_speed, widen_current = widen_speed * step, widen_current * step
             if torque is not None:
-                widest = np.broadcast_to(np.maximum(widen_speed, widen_current), shape)
+                widest = broadcast_to(np.maximum(widen_speed, widen_current), shape)
                 torque = frame.noise_as_rows().torque_sigmas(a, e) * widest
             if profile.range_growth > 0 and profile.judges_within_noise_conditions:
                 # beyond the identified speeds (within range_margin) each motor's own model is

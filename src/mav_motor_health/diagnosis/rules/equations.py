@@ -78,8 +78,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._arrays import one_of
-from ..states import MotorState
+from ..._arrays import broadcast_to, one_of
+from ..states import Code, MotorState
 from .bands import held_average
 from .base import Frame, Rule
 
@@ -137,13 +137,13 @@ class Equations(Rule):
             return carries
         torque_depth = np.abs(z) / n
         departs = torque_depth > 1.0
-        named = np.where(z > 0, MotorState.F1_1, MotorState.F3_1)
+        named = np.where(z > 0, Code.F1_1, Code.F3_1)
         # only a torque below its band may be an open transistor's (module doc): above, it is friction
-        deeper_f41 = (state == MotorState.F4_1) & (depth >= torque_depth) & (z < 0)
+        deeper_f41 = (state == Code.F4_1) & (depth >= torque_depth) & (z < 0)
         new = np.where(
             departs & ~deeper_f41,
             named,
-            np.where(one_of(state, TORQUE_FAULTS), MotorState.NORMAL, state),
+            np.where(one_of(state, TORQUE_FAULTS), Code.NORMAL, state),
         ).astype(state.dtype)
         new_depth = np.where(departs & ~deeper_f41, torque_depth, np.where(new == state, depth, 1.0))
         # a slower motor the tree named an open transistor: torque added rather than voltage lost where the
@@ -151,8 +151,8 @@ class Equations(Rule):
         z_voltage = self._voltage_z(frame, band)
         if z_voltage is not None:
             with np.errstate(invalid="ignore"):
-                torque_added = (new == MotorState.F4_1) & (z > 0) & (z > z_voltage)
-            new[torque_added] = MotorState.F1_1
+                torque_added = (new == Code.F4_1) & (z > 0) & (z > z_voltage)
+            new[torque_added] = Code.F1_1
         state[reread] = new[reread]
         depth[reread] = new_depth[reread]
         return carries
@@ -188,7 +188,7 @@ class Equations(Rule):
             frame.time_s,
             np.where(counted, torque, 0.0),
             counted,
-            slow_factor * np.broadcast_to(frame.low_pass_s, frame.shape),
+            slow_factor * broadcast_to(frame.low_pass_s, frame.shape),
             carried[:, 0],
             carried[:, 1],
         )
@@ -217,7 +217,7 @@ class TorqueSlowLook(Rule):
             return carries
         state = frame.state
         judged = np.isfinite(frame.z_torque) & np.isfinite(averaged)
-        candidates = judged & slow.ready & (state == MotorState.NORMAL)
+        candidates = judged & slow.ready & (state == Code.NORMAL)
         if not candidates.any():
             return carries
         rows = frame.noise_as_rows()
@@ -236,7 +236,7 @@ class TorqueSlowLook(Rule):
         named = candidates & (slow_depth > 1.0) & agrees
         if not named.any():
             return carries
-        state[named] = np.where(z[named] > 0, MotorState.F1_1, MotorState.F3_1)
+        state[named] = np.where(z[named] > 0, Code.F1_1, Code.F3_1)
         frame.depth[named] = slow_depth[named]
         # in σ of the band, as the test counts the torque's own departure (z_torque)
         frame.note_slow_evidence(named, slow_depth * self.profile.equation_bands)

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from ..._arrays import one_of
 from ...model.equations import current_from_speed
 from ..plausibility import SensorIssue
-from ..states import MotorState
+from ..states import Code, MotorState
 from .base import Frame, Rule
 
 if TYPE_CHECKING:
@@ -44,7 +44,7 @@ __all__ = ["TRANSIENT_OK", "Judged"]
 
 #: States a stalled motor shows whatever its input: announced from transient samples too.
 TRANSIENT_OK = (MotorState.F2_1, MotorState.F4_2, MotorState.STALLED)
-_SPEED_BROKEN = SensorIssue.SPEED_STUCK | SensorIssue.SPEED_RANGE
+_SPEED_BROKEN = int(SensorIssue.SPEED_STUCK | SensorIssue.SPEED_RANGE)
 
 
 @dataclass(frozen=True)
@@ -58,7 +58,7 @@ class Judged(Rule):
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
         profile, state, noise = self.profile, frame.state, frame.noise
-        state[(frame.sensor_flags & _SPEED_BROKEN) != 0] = MotorState.SENSOR_FAULT
+        state[(frame.sensor_flags & _SPEED_BROKEN) != 0] = Code.SENSOR_FAULT
         steady = frame.steady
         if profile.judges_within_noise_conditions and noise is not None:
             # beyond the speeds identification checked the model at, in busier air than its flight's or
@@ -74,12 +74,12 @@ class Judged(Rule):
                 # also while it waits after a step (a healthy motor driven up never shows it)
                 judged_view, measured_view = _unloaded_beyond(frame)
                 steady = steady | (judged_view & held) | (measured_view & (held | _waiting(frame)))
-        eligible = (steady | one_of(state, TRANSIENT_OK)) & (state != MotorState.NO_DATA)
+        eligible = (steady | one_of(state, TRANSIENT_OK)) & (state != Code.NO_DATA)
         if frame.command is not None and profile.min_command > 0:
             idle = np.asarray(frame.command, dtype=float) < profile.min_command  # idle and spin-up
             eligible &= ~idle
             steady = steady & ~idle
-        frame.depth[state == MotorState.SENSOR_FAULT] = 1.0
+        frame.depth[state == Code.SENSOR_FAULT] = 1.0
         frame.steady, frame.eligible = steady, eligible
         return carries
 
@@ -115,7 +115,7 @@ def _unloaded_beyond(frame: Frame) -> tuple[NDArray[np.bool_], NDArray[np.bool_]
     # motor's own offset from the shared model, as its model is judged (rules/offsets.py)
     offset = np.array([n.current_offset_a for n in frame.noise], dtype=float)[:, None]
     floor = current_from_speed(frame.params, np.where(np.isfinite(top), top, 0.0)) + offset
-    lighter = (frame.state == MotorState.F3_1) & frame.current_trusted()
+    lighter = (frame.state == Code.F3_1) & frame.current_trusted()
     with np.errstate(invalid="ignore"):
         judged = (
             lighter

@@ -80,7 +80,7 @@ class PairingLimits(Rule):
         if measured is not None:
             unpaired, doubtful = unpaired & ~measured, doubtful & ~measured
         frame.sensor_flags = np.where(
-            unpaired, frame.sensor_flags | SensorIssue.CURRENT_UNPAIRED, frame.sensor_flags
+            unpaired, frame.sensor_flags | int(SensorIssue.CURRENT_UNPAIRED), frame.sensor_flags
         ).astype(np.int16)
         frame.steady = frame.steady & ~doubtful
         return carries

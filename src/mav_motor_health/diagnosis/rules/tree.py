@@ -27,11 +27,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..._arrays import broadcast_to
 from ...model.dynamics import last_of
 from ..detection import direction_evidence, evidence_toward
 from ..noise import MIN_MOTOR_SAMPLES
 from ..stall import stop_speeds
-from ..states import MotorState
+from ..states import Code
 from ..tree import agreeing_departures, classify_depth
 from .base import Frame, Rule
 
@@ -97,7 +98,7 @@ class Tree(Rule):
         if not np.isfinite(typical).any():
             return None, carries
         flight, carries = flight_typical(frame, carries)
-        fallback = np.broadcast_to(
+        fallback = broadcast_to(
             np.asarray(profile.stall_split(frame.bus_voltage_v), dtype=float), frame.shape
         )
         # the lower of the two; identification's where the flight has none yet, none where it has none
@@ -163,7 +164,7 @@ class SlowLook(Rule):
         if slow is None or not self.fraction > 0:
             return carries
         state = frame.state
-        candidates = slow.ready & (state == MotorState.NORMAL) & frame.current_trusted()
+        candidates = slow.ready & (state == Code.NORMAL) & frame.current_trusted()
         if not np.any(candidates):
             return carries
         named_toward = None
@@ -193,7 +194,7 @@ class SlowLook(Rule):
                 # friction and a lighter propeller are the torque balance's where it judges them
                 # (rules/equations.py): there the slow look names an open transistor only
                 torque = np.isfinite(frame.z_torque)
-                slow_state[torque & (slow_state != MotorState.F4_1)] = MotorState.NORMAL
+                slow_state[torque & (slow_state != Code.F4_1)] = Code.NORMAL
             # the departure in the named direction, in σ of the bands as the test counts the fast look's
             n = frame.profile.noise_bands
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -210,7 +211,7 @@ class SlowLook(Rule):
                 * np.where(slow.delta_current_a < 0, frame.current_band_below_a, frame.current_band_a),
                 self.joint_band_sum or 2.0,
             )
-        use = candidates & (slow_state != MotorState.NORMAL)
+        use = candidates & (slow_state != Code.NORMAL)
         state[use] = slow_state[use]
         frame.depth[use] = slow_depth[use]
         if named_toward is not None:
