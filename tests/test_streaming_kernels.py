@@ -50,8 +50,9 @@ def response_per_sample(t, x, tau, carry=None):
             y = a * y + (1.0 - a) * mean_in
         out[k] = y
         prev_t, prev_x = tk, xk
-    last_input = x[-1] if np.isfinite(x[-1]) else carry.input
-    return out, ResponseCarry(time_s=float(t[-1]), input=float(last_input), output=float(out[-1]))
+    # the last input as it is (NaN where missing): a next call's first interval then averages from its
+    # own input alone, as it would in one array
+    return out, ResponseCarry(time_s=float(t[-1]), input=float(x[-1]), output=float(out[-1]))
 
 
 def announce_per_run(hold_s, time_s, state, eligible, carry=None, max_gap_s=float("inf"),
@@ -131,6 +132,11 @@ def chunks(n: int, rng: np.random.Generator):
         k += step
 
 
+def same_carry(a: ResponseCarry, b: ResponseCarry) -> bool:
+    """Equal carries, a missing (NaN) input equal to a missing one."""
+    return all(x == y or (math.isnan(x) and math.isnan(y)) for x, y in zip(a, b))
+
+
 def assert_close(got, want):
     np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12, equal_nan=True)
@@ -174,8 +180,10 @@ def test_first_order_response_whole_chunked_and_one_by_one_match_the_per_sample_
         math.isnan(whole_carry.input) and math.isnan(want_carry.input)
     )
     assert whole_carry.output == pytest.approx(want_carry.output, rel=1e-12, abs=1e-12)
-    # In chunks (the agent's batches) against the definition fed the same chunks: a chunk that ends on a
-    # missing input carries the last finite one, which the next chunk's first interval averages with
+    # In chunks (the agent's batches) against the definition fed the same chunks, and against the whole
+    # array: a chunk that ends on a missing input carries it as missing (NaN), so that the next chunk's
+    # first interval averages from its own input alone, as the whole array does (a chunk that carried
+    # the last finite input instead had made the agent differ from replay there, issue 18)
     rng = np.random.default_rng(seed)
     carry, ref_carry, parts, ref_parts = ResponseCarry(), ResponseCarry(), [], []
     for part in chunks(t.size, rng):
@@ -184,6 +192,8 @@ def test_first_order_response_whole_chunked_and_one_by_one_match_the_per_sample_
         parts.append(y)
         ref_parts.append(ref)
     assert_close(np.concatenate(parts), np.concatenate(ref_parts))
+    assert_close(np.concatenate(parts), want)
+    assert not np.isfinite(x).all()  # (missing inputs, some of them at a chunk's end)
     carry, ones = ResponseCarry(), []
     for k in range(600):
         y, carry = first_order_response(t[k : k + 1], x[k : k + 1], tau[k : k + 1], carry)
@@ -224,7 +234,7 @@ def test_stacked_rows_give_what_one_call_per_row_gives() -> None:
         for r, carry in enumerate(carries):
             alone, alone_carry = first_order_response(t[sl], rows[r, sl], tau[sl], carry)
             np.testing.assert_array_equal(together[r], alone)
-            assert new[r] == alone_carry
+            assert same_carry(new[r], alone_carry)
 
 
 def test_rows_of_motors_with_their_own_times_give_what_one_call_per_row_gives() -> None:
@@ -249,7 +259,7 @@ def test_rows_of_motors_with_their_own_times_give_what_one_call_per_row_gives() 
                 m, count = r % motors, counts[r % motors]
                 alone, alone_carry = first_order_response(t[m, :count], x[r, :count], tau[m, :count], carry)
                 np.testing.assert_array_equal(together[r, :count], alone)
-                assert new[r] == alone_carry or (count == 0 and new[r] is carry)
+                assert same_carry(new[r], alone_carry) or (count == 0 and new[r] is carry)
 
 
 # -- pairing ---------------------------------------------------------------------------------------------

@@ -161,11 +161,9 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
         rows = {name: np.concatenate([p[name] for p in parts_all[m]]) for name in parts_all[m][0]}
         assert_same(rows, alone, m)
         assert together.carries[m].rules["persistence"] == one_by_one.carries[m].rules["persistence"]
-        if any(np.isnan(c).any() for c in cols.values()):
-            # A batch that ends on a lost sample carries the low-passes' last finite input, where the
-            # whole array averages the next interval from the sample alone (model/dynamics.py): there
-            # the agent's states may differ from replay's by a sample (reported in issue 18's notes)
-            continue
+        # (a batch that ends on a lost sample carries it as lost: the next batch averages its first
+        # interval from its own sample alone, as the whole array does, model/dynamics.py; lost samples
+        # included, the agent's states are replay's)
         whole, _ = diagnose_motor(
             params if isinstance(params, MotorParams) else params[m],
             profile,
@@ -205,7 +203,7 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
     """With the torque judged against the siblings (diagnosis/siblings.py), a motor's results depend on
     the others': batches cut in the order samples arrive (time, then motor) through
     :meth:`StreamingDiagnoser.update_motors` give what :func:`diagnose` gives the whole table. (Every
-    sample given: a batch ending on a lost sample differs by a sample for its own reason, see above.)
+    sample given here; lost samples: the test above and the one of a log in parts, below.)
     ``limited``: the noise measured on a calmer flight, so that most samples lie beyond its conditions,
     where the shipped profile grows the bands as the siblings' deviations run (rules/bands.py): the
     bands depend on the other motors' too, and are the same both ways. ``step_sigmas``: a step also where
@@ -371,3 +369,53 @@ def test_current_sum_row_by_row_equals_whole_arrays() -> None:
     np.testing.assert_array_equal(np.concatenate(got), want)
     assert want.any() and not want.all()
     np.testing.assert_array_equal(chunked.latest, whole.latest)
+
+
+@pytest.mark.parametrize("profile_name", ["flight", "flight_vehicle"])
+def test_a_log_diagnosed_in_parts_gives_what_it_gives_whole(paper_motor, monkeypatch, profile_name) -> None:
+    """:func:`diagnose` takes a long log in consecutive parts (pipeline.LOG_PART samples, cut between
+    instants), each motor's carry and the vehicle stage's taking one part on from the one before: the
+    same results as the whole log in one part (codes equal, values to rounding). The F4.2 flight, a
+    stall named, with lost samples and rows without a measurement, in parts of about 700 samples."""
+    from mav_motor_health.diagnosis.pipeline import diagnose
+
+    table = sources.read(FLIGHT)
+    rng = np.random.default_rng(29)
+    lost = rng.random(len(table)) < 0.03
+    table = table.with_columns(
+        omega_rad_s=np.where(lost, np.nan, table["omega_rad_s"]),
+        current_a=np.where(lost | (rng.random(len(table)) < 0.02), np.nan, table["current_a"]),
+    )
+    profile = load_profile(profile_name)
+    noise = None
+    if profile.noise_bands > 0:
+        profile = dataclasses.replace(profile, speed_against_siblings=0.0)
+        noise = {
+            m: BandNoise(
+                6.0 + m,
+                0.2 + 0.05 * m,
+                15.0 + m,
+                0.4,
+                torque=EquationNoise(0.001, 0.002, 0.0, 0.0, through_duty=True),
+                torque_vs_siblings=EquationNoise(0.0003 + 0.0001 * m, 0.001, 0.0, 0.0001),
+            )
+            for m in table.motors()
+        }
+    whole = diagnose(table, paper_motor, profile, noise)  # (under 2 × LOG_PART: one part)
+    monkeypatch.setattr(pipeline, "LOG_PART", 700)
+    ordered = table.sorted_by_motor_time()
+    rows = {int(m): np.flatnonzero(ordered["motor"] == m) for m in ordered.motors()}
+    parts = pipeline._log_parts(ordered["time_s"], rows)
+    assert len(parts) > 10 and all(sum(hi - lo for lo, hi in part.values()) > 500 for part in parts)
+    got = diagnose(table, paper_motor, profile, noise)
+    assert got.names == whole.names
+    for name in whole.names:
+        if name in (*DISCRETE, "vehicle_fit", "motor"):
+            np.testing.assert_array_equal(got[name], whole[name], err_msg=name)
+        else:
+            np.testing.assert_allclose(
+                got[name], whole[name], rtol=1e-9, atol=1e-9, equal_nan=True, err_msg=name
+            )
+    assert (whole["announced"] != MotorState.NORMAL).any() and (whole["state"] == MotorState.NO_DATA).any()
+    if noise is not None:
+        assert np.isfinite(whole["torque_siblings_nm"]).mean() > 0.5  # the stage ran, across the parts

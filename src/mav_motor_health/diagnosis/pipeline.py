@@ -618,6 +618,50 @@ def _motor_rows_in_time(
     return {int(motor[a]): position[a:b] for a, b in zip(starts.tolist(), ends.tolist())}
 
 
+#: :func:`diagnose` takes a log in consecutive parts of about this many samples (every motor's together; of
+#: 2^16, 2^17 and 2^18, 2^18 took the least CPU on a fitted vehicle's hour run once, 2^16 the least memory)
+LOG_PART = 1 << 18
+
+
+def _log_parts(
+    time_s: NDArray[np.float64], measured_rows: Mapping[int, NDArray[np.intp]]
+) -> list[dict[int, tuple[int, int]]]:
+    """Consecutive parts of a log, cut between instants, of one size and as many as is nearest to parts of
+    :data:`LOG_PART` samples: for each part, each motor's first and last + 1 place in its
+    ``measured_rows`` (rows of ``time_s`` in increasing time). One part where the log holds fewer than
+    two parts' samples, or a time is not finite."""
+    whole = [{m: (0, rows.size) for m, rows in measured_rows.items()}]
+    times = {m: time_s[rows] for m, rows in measured_rows.items()}
+    total = sum(t.size for t in times.values())
+    if total <= 2 * LOG_PART:
+        return whole
+    every = np.concatenate(list(times.values()))
+    if not np.isfinite(every).all():
+        return whole
+    ranked = np.sort(every, kind="stable")  # each motor's in order already: a merge of sorted runs
+    size = -(-total // round(total / LOG_PART))  # parts of one size, the nearest count to LOG_PART's
+    cuts = np.unique(ranked[size::size])
+    cuts = cuts[cuts > ranked[0]]  # (every part holds samples; an instant stays whole)
+    starts = {
+        m: np.concatenate([[0], np.searchsorted(t, cuts, side="left"), [t.size]]) for m, t in times.items()
+    }
+    return [{m: (int(at[k]), int(at[k + 1])) for m, at in starts.items()} for k in range(cuts.size + 1)]
+
+
+def _keep(
+    out: dict[str, NDArray],
+    sel: NDArray[np.intp] | slice,
+    carries: dict[int, MotorCarry | None],
+    motor: int,
+    done: tuple[dict[str, NDArray], list[MotorCarry]],
+) -> None:
+    """A finished call's results into ``out`` at the rows ``sel``, and the motor's new carry."""
+    cols, new = done
+    for name, values in cols.items():
+        out[name][sel] = values[0]
+    carries[motor] = new[0]
+
+
 def diagnose(
     table: TelemetryTable,
     params: MotorParams | dict[int, MotorParams],
@@ -681,13 +725,14 @@ def diagnose(
         return None if values is None else values[sel].copy()
 
     omega_all, current_all = ordered["omega_rad_s"], ordered["current_a"]
-    # the vehicle stage (the siblings' torque, .siblings) runs over every motor's whole log at once; none
-    # for a bench file's "motors" (different motors, not one vehicle's) or a vehicle judged without it,
-    # whose motors finish one by one (one motor's arrays alive at a time)
+    # the vehicle stage (the siblings' torque, .siblings) runs over every motor's samples of a part at
+    # once; none for a bench file's "motors" (different motors, not one vehicle's) or a vehicle judged
+    # without it, whose motors finish one by one (one motor's arrays alive at a time)
     frame_motors = vehicle_motors(table)
     stage = vehicle_stage(frame_motors, noise, profile) if frame_motors else None
-    started: list[tuple[int, NDArray[np.intp] | slice, NDArray[np.intp], StartedCall]] = []
-    finished: list[tuple[dict[str, NDArray], list[MotorCarry]]] = []
+    # each motor's measured rows (in time), and the rows without a measurement
+    measured_rows: dict[int, NDArray[np.intp]] = {}
+    unmeasured_rows: dict[int, NDArray[np.intp]] = {}
     for motor in ordered.motors():
         rows = np.flatnonzero(motors == motor)
         # Rows without a measurement (an ESC slot that repeated its last packet in a .tlog, a gap in a
@@ -695,59 +740,70 @@ def diagnose(
         # (its input activity scales with the sample interval, and a 10 Hz ESC in 50 Hz messages would
         # look like a 50 Hz one). They read NO_DATA and keep the state announced before them.
         measured = np.isfinite(omega_all[rows]) | np.isfinite(current_all[rows])
-        sel: NDArray[np.intp] | slice = rows[measured]
-        unmeasured = rows[~measured]
-        if unmeasured.size:
-            out["state"][unmeasured] = MotorState.NO_DATA
-        if rows[measured].size == 0:
-            continue
-        first, last = int(rows[measured][0]), int(rows[measured][-1])
-        if last - first + 1 == rows[measured].size:  # one run of rows (the table is by motor): a block
-            sel = slice(first, last + 1)
-        motor_params = params[motor] if isinstance(params, dict) else params
-        context = None
-        if motor_params.effects:
-            context = {
-                name: np.asarray(ordered[name][sel].copy(), dtype=float)
-                for name in ordered.names
-                if ordered[name].dtype.kind in "biuf"
-            }
-        call = start_motor(
-            motor_params,
-            profile,
-            ordered["time_s"][sel].copy(),
-            voltage[sel].copy(),
-            ordered["omega_rad_s"][sel].copy(),
-            ordered["current_a"][sel].copy(),
-            part(bus, sel),
-            command=part(command, sel),
-            sensor_current_a=part(sensor_current, sel),
-            extra_flags=part(sum_flags, sel),
-            context=context,
-            pairing_s=(
-                pairing_column[sel].copy()
-                if pairing_column is not None
-                else (None if pairing is None else float(pairing))
-            ),
-            input_excursion_v=part(excursion_column, sel),
-            noise=None if noise is None else noise.get(int(motor)),
-        )
-        started.append((int(motor), sel, unmeasured, call))
-        if stage is None:
-            finished.append(call.finish())
-            started[-1] = (int(motor), sel, unmeasured, StartedCall(None, [], [], ()))  # its arrays let go
-    if stage is not None:
-        finished = run_vehicle_stage(stage, [([m], call) for m, _, _, call in started])
-    for (_, sel, unmeasured, _), (cols, _) in zip(started, finished):
-        for name, values in cols.items():
-            out[name][sel] = values[0]
-        if unmeasured.size:
-            if isinstance(sel, slice):
-                sel = np.arange(sel.start, sel.stop)
-            before = np.searchsorted(sel, unmeasured) - 1  # the last measured row before each
-            out["announced"][unmeasured] = np.where(
-                before >= 0, out["announced"][sel[np.maximum(before, 0)]], MotorState.NORMAL
+        unmeasured_rows[int(motor)] = rows[~measured]
+        out["state"][rows[~measured]] = MotorState.NO_DATA
+        if measured.any():
+            measured_rows[int(motor)] = rows[measured]
+    # The log in consecutive parts of about LOG_PART samples, cut between instants (the core's carries
+    # take each part on from the one before, as the live agent's batches are taken on): the arrays of a
+    # part stay small and are used again, instead of every rule's arrays of every motor's whole log at
+    # once (hundreds of MB for an hour, each page touched anew: issue 18)
+    carries: dict[int, MotorCarry | None] = {m: None for m in measured_rows}
+    for bounds in _log_parts(ordered["time_s"], measured_rows):
+        started: list[tuple[int, NDArray[np.intp] | slice, StartedCall]] = []
+        for motor, rows in measured_rows.items():
+            lo, hi = bounds[motor]
+            if hi <= lo:
+                continue
+            sel: NDArray[np.intp] | slice = rows[lo:hi]
+            first, last = int(rows[lo]), int(rows[hi - 1])
+            if last - first + 1 == hi - lo:  # one run of rows (the table is by motor): a block
+                sel = slice(first, last + 1)
+            motor_params = params[motor] if isinstance(params, dict) else params
+            context = None
+            if motor_params.effects:
+                context = {
+                    name: np.asarray(ordered[name][sel].copy(), dtype=float)
+                    for name in ordered.names
+                    if ordered[name].dtype.kind in "biuf"
+                }
+            call = start_motor(
+                motor_params,
+                profile,
+                ordered["time_s"][sel].copy(),
+                voltage[sel].copy(),
+                ordered["omega_rad_s"][sel].copy(),
+                ordered["current_a"][sel].copy(),
+                part(bus, sel),
+                carries[motor],
+                command=part(command, sel),
+                sensor_current_a=part(sensor_current, sel),
+                extra_flags=part(sum_flags, sel),
+                context=context,
+                pairing_s=(
+                    pairing_column[sel].copy()
+                    if pairing_column is not None
+                    else (None if pairing is None else float(pairing))
+                ),
+                input_excursion_v=part(excursion_column, sel),
+                noise=None if noise is None else noise.get(motor),
             )
+            if stage is None:  # finished at once: one motor's arrays alive at a time
+                _keep(out, sel, carries, motor, call.finish())
+            else:
+                started.append((motor, sel, call))
+        if started:
+            finished = run_vehicle_stage(stage, [([m], call) for m, _, call in started])
+            for (motor, sel, _), done in zip(started, finished):
+                _keep(out, sel, carries, motor, done)
+    for motor, unmeasured in unmeasured_rows.items():
+        if unmeasured.size == 0 or motor not in measured_rows:
+            continue
+        sel = measured_rows[motor]
+        before = np.searchsorted(sel, unmeasured) - 1  # the last measured row before each
+        out["announced"][unmeasured] = np.where(
+            before >= 0, out["announced"][sel[np.maximum(before, 0)]], MotorState.NORMAL
+        )
     # Before any fault is announced: does the model describe this vehicle at all? Rows in the order the
     # live agent receives them (time, then motor number within one message).
     check = StreamingDiagnoser.vehicle_check_for(profile, vehicle_motors(table))

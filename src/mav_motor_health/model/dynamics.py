@@ -286,10 +286,12 @@ def _carries_at_last(
         last_times = t[index % times, at].tolist()
         inputs = x[index, at].tolist()
         outputs = out[index, at].tolist()
-    if all(map(math.isfinite, inputs)) and all(counts):  # (the common case: each row's own last values)
+    # the last input as it is, NaN where it was missing: the next call's first interval then averages
+    # from its own input alone, as the same samples in one array do (a missing input's successor)
+    if all(counts):  # (the common case: each row's own last values)
         return list(map(ResponseCarry._make, zip(last_times, inputs, outputs)))
     return [
-        carry if count == 0 else ResponseCarry(time, value if math.isfinite(value) else carry.input, output)
+        carry if count == 0 else ResponseCarry(time, value, output)
         for carry, count, time, value, output in zip(carries, counts, last_times, inputs, outputs)
     ]
 
@@ -497,7 +499,9 @@ def _responses_scalar(
         last = row[count - 1]
         news.append(
             ResponseCarry(
-                time_s=row_t[-1], input=last if math.isfinite(last) else carry.input, output=float(y)
+                time_s=row_t[-1],
+                input=last,
+                output=float(y),  # (a missing last input: NaN, see above)
             )
         )
     return out, news
