@@ -88,6 +88,22 @@ def per_motor_models(paper_motor: MotorParams, motors: Iterable[int]) -> dict[in
     }
 
 
+def stage_noise(motors: Iterable[int]) -> dict[int, BandNoise]:
+    """Made-up noise for every motor, each its own, with the torque's against its siblings (the
+    vehicle stage runs)."""
+    return {
+        m: BandNoise(
+            6.0 + m,
+            0.2 + 0.05 * m,
+            15.0 + m,
+            0.4,
+            torque=EquationNoise(0.001, 0.002, 0.0, 0.0, through_duty=True),
+            torque_vs_siblings=EquationNoise(0.0003 + 0.0001 * m, 0.001, 0.0, 0.0001),
+        )
+        for m in motors
+    }
+
+
 @pytest.mark.parametrize("models", ["one model", "per-motor models"])
 @pytest.mark.parametrize("profile_name", ["flight", "flight_dynamic", "testbed", "flight_vehicle"])
 def test_motors_in_one_call_give_what_one_call_per_motor_gives(
@@ -222,17 +238,7 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
         profile = dataclasses.replace(
             profile, steady=dataclasses.replace(profile.steady, step_sigmas=step_sigmas)
         )
-    noise = {
-        m: BandNoise(
-            6.0 + m,
-            0.2 + 0.05 * m,
-            15.0 + m,
-            0.4,
-            torque=EquationNoise(0.001, 0.002, 0.0, 0.0, through_duty=True),
-            torque_vs_siblings=EquationNoise(0.0003 + 0.0001 * m, 0.001, 0.0, 0.0001),
-        )
-        for m in motors
-    }
+    noise = stage_noise(motors)
     if against:
         profile = dataclasses.replace(profile, speed_against_siblings=1.0)
         # every pair correlated 0.5, each motor its own variance
@@ -390,17 +396,7 @@ def test_a_log_diagnosed_in_parts_gives_what_it_gives_whole(paper_motor, monkeyp
     noise = None
     if profile.noise_bands > 0:
         profile = dataclasses.replace(profile, speed_against_siblings=0.0)
-        noise = {
-            m: BandNoise(
-                6.0 + m,
-                0.2 + 0.05 * m,
-                15.0 + m,
-                0.4,
-                torque=EquationNoise(0.001, 0.002, 0.0, 0.0, through_duty=True),
-                torque_vs_siblings=EquationNoise(0.0003 + 0.0001 * m, 0.001, 0.0, 0.0001),
-            )
-            for m in table.motors()
-        }
+        noise = stage_noise(table.motors())
     whole = diagnose(table, paper_motor, profile, noise)  # (under 2 × LOG_PART: one part)
     monkeypatch.setattr(pipeline, "LOG_PART", 700)
     ordered = table.sorted_by_motor_time()
