@@ -2,7 +2,7 @@
 
     PYTHONPATH=src python benchmarks/bench_replay_speed.py [--minutes 60] [--simulate-minutes 10]
                                                            [--esc-hz 25] [--repeat 3] [--profile]
-                                                           [--vehicle bundled|identified]
+                                                           [--vehicle bundled|identified] [--keep DIR]
 
 The log is written here with the project's simulator and writers (``sim.engine.run_scenario``,
 ``sim.writers.write_record``): a healthy hexacopter in moderate air repeating hover, climb, translate and
@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from mav_motor_health.config import DEFAULT_MOTOR, load_profile, load_vehicle_params
+from mav_motor_health.config import DEFAULT_MOTOR, dump_vehicle_params, load_profile, load_vehicle_params
 from mav_motor_health.diagnosis.noise import band_noise_of
 from mav_motor_health.diagnosis.pipeline import diagnose
 from mav_motor_health.identification import with_band_noise
@@ -123,7 +123,7 @@ def identified_vehicle(directory: Path, esc_hz: float) -> VehicleParams:
     """The bundled motor with each motor's noise measured as ``fit`` measures it, on a 150-s flight of
     the same vehicle (seed 19): the vehicle file of ``--vehicle identified``."""
     folder = directory / "identification"
-    folder.mkdir()
+    folder.mkdir(exist_ok=True)
     tlog, _, _ = simulate(folder, 150.0, esc_hz, seed=19)
     return with_band_noise(load_vehicle_params(DEFAULT_MOTOR), [sources.read(tlog)])
 
@@ -319,6 +319,13 @@ def main(argv: list[str] | None = None) -> int:
         help="the bundled motor (flight profile), or its vehicle file with the noise fit measures"
         " (flight_vehicle, as replay --params picks it for a file fit wrote)",
     )
+    ap.add_argument(
+        "--keep",
+        type=Path,
+        metavar="DIR",
+        help="write the logs (flight.tlog, flight.bin) and, with --vehicle identified, vehicle.toml into DIR"
+        " and leave them there (to time the replay command on them: docs/replay.md)",
+    )
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     global VEHICLE, PROFILE
@@ -331,11 +338,16 @@ def main(argv: list[str] | None = None) -> int:
     )
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
+        if args.keep is not None:
+            folder = args.keep
+            folder.mkdir(parents=True, exist_ok=True)
         cpu, _, (tlog_block, bin_block, samples) = _timed(lambda: simulate(folder, block_s, args.esc_hz))
         print(f"   simulated and written in {cpu:.1f} s CPU ({samples} ESC samples in the block)")
         if args.vehicle == "identified":
             cpu, _, VEHICLE = _timed(lambda: identified_vehicle(folder, args.esc_hz))
             PROFILE = "flight_vehicle"
+            if args.keep is not None:
+                (folder / "vehicle.toml").write_text(dump_vehicle_params(VEHICLE))
             print(f"   vehicle: the noise measured as fit does, on another 150-s flight, in {cpu:.1f} s CPU")
         tlog, dataflash = folder / "flight.tlog", folder / "flight.bin"
         repeat_tlog(tlog_block, tlog, repeats, period_s)

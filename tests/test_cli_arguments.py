@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -53,3 +55,17 @@ def test_bad_input_gets_one_clear_line_and_a_failing_exit(capsys, tmp_path, argv
     assert "Traceback" not in err
     last = [line for line in err.splitlines() if line.strip()][-1]
     assert "error:" in last and says.split(":")[0] in last
+
+
+def test_replay_and_the_agent_start_without_scipy_optimize() -> None:
+    """Only the fits need scipy.optimize, whose import takes about a third of the package's (issue 18):
+    the command line, replay and the agent do not import it until a fit runs."""
+    code = (
+        "import sys, mav_motor_health.cli, mav_motor_health.replay, mav_motor_health.agent\n"
+        "assert 'scipy.optimize' not in sys.modules, 'imported at start'\n"
+        "from mav_motor_health.model.lsq import fit_linear\n"
+        "fit_linear([[1.0], [2.0]], [2.0, 4.0], ['k'])\n"
+        "assert 'scipy.optimize' in sys.modules, 'a fit imports it'\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr

@@ -35,7 +35,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import minimize_scalar
 
 from .lsq import fit_linear
 
@@ -175,6 +174,10 @@ def search_idle_offset(terms: Mapping[int, ElectricalTerms], side: str) -> tuple
     costs = [cost(c) for c in grid]
     best = int(np.argmin(costs))
     lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
+    # scipy.optimize where a fit needs it: its import takes about 0.12 s here, which replay and the
+    # agent would pay at every start (issue 18; tests/test_cli_arguments.py)
+    from scipy.optimize import minimize_scalar
+
     found = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-5})
     c0 = float(found.x) if found.fun <= costs[best] else float(grid[best])
     at = cost(c0)

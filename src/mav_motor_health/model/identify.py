@@ -57,7 +57,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize_scalar
 
 from ..errors import FitError
 from ..telemetry.table import TelemetryTable
@@ -1003,6 +1002,10 @@ def _speed_only_offset(data: Sequence[_MotorData], prior: MotorParams) -> float:
             ke = _speed_only_ke(m, esc, prior)
             total += float(np.mean((esc.duty(m.command) * m.bus_v - ke * m.omega) ** 2))
         return total
+
+    # scipy.optimize where a fit needs it: its import takes about 0.12 s here, which replay and the
+    # agent would pay at every start (issue 18; tests/test_cli_arguments.py)
+    from scipy.optimize import minimize_scalar
 
     found = minimize_scalar(cost, bounds=SPEED_ONLY_OFFSET_RANGE, method="bounded")
     return float(found.x)

@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares, lsq_linear
 
 __all__ = ["LeastSquaresFit", "accuracy_pct", "fit_least_squares", "fit_linear"]
 
@@ -222,6 +221,10 @@ def fit_least_squares(
     """
     x0 = np.asarray(x0, dtype=float)
     p = x0.size
+    # scipy.optimize where a fit needs it: its import takes about 0.12 s here, which replay and the
+    # agent would pay at every start (issue 18; tests/test_cli_arguments.py)
+    from scipy.optimize import least_squares
+
     sc = np.ones(p) if scale is None else np.asarray(scale, dtype=float)
 
     def scaled(z: FloatArray) -> FloatArray:
@@ -278,6 +281,8 @@ def fit_linear(
     col = np.maximum(np.abs(a).max(axis=0), 1e-30) if a.shape[0] else np.ones(p)
     lo = np.broadcast_to(np.asarray(lower, dtype=float), (p,))
     hi = np.broadcast_to(np.asarray(upper, dtype=float), (p,))
+    from scipy.optimize import lsq_linear  # (imported here: see fit_least_squares)
+
     solution = lsq_linear(a / col, y, bounds=(lo * col, hi * col), method="bvls")
     x = solution.x / col
     r = a @ x - y
