@@ -9,12 +9,12 @@ counted instead of hashed and sorted: a whole log's codes in one pass.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["broadcast_to", "distinct", "nan_to_zero", "one_of"]
+__all__ = ["broadcast_to", "distinct", "nan_to_zero", "one_of", "part_bounds"]
 
 #: codes below this are counted by :func:`distinct` (a table of this many counts at most)
 DISTINCT_COUNTED = 1 << 16
@@ -59,3 +59,23 @@ def distinct(values: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         return present.astype(np.int64), counts[present].astype(np.int64)
     uniq, counts = np.unique(x, return_counts=True)
     return uniq.astype(np.int64), counts.astype(np.int64)
+
+
+def part_bounds(series: Sequence[NDArray[np.float64]], size: int) -> NDArray[np.intp] | None:
+    """Consecutive parts of several series of times (each in increasing time), taken together in time
+    order, of about ``size`` samples each, cut between instants (the samples of one instant stay in one
+    part, however many): each series' first sample of each part, one column per part, and a last
+    column of the series' lengths. None where a time is not finite or no cut falls after the first
+    instant (one part). The caller decides whether the series are long enough to cut."""
+    every = np.concatenate(series) if len(series) else np.zeros(0)
+    if every.size == 0 or not np.isfinite(every).all():
+        return None
+    ranked = np.sort(every, kind="stable")  # each series in order already: a merge of sorted runs
+    cuts = np.unique(ranked[size::size])
+    cuts = cuts[cuts > ranked[0]]  # (every part holds samples; an instant stays whole)
+    if cuts.size == 0:
+        return None
+    # side="left": the samples of a cut's instant go with the part it begins
+    starts = np.array([np.searchsorted(row, cuts, side="left") for row in series], dtype=np.intp)
+    ends = np.array([row.size for row in series], dtype=np.intp)[:, None]
+    return np.concatenate([np.zeros((len(series), 1), dtype=np.intp), starts, ends], axis=1)

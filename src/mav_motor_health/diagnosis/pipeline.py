@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._arrays import broadcast_to
+from .._arrays import broadcast_to, part_bounds
 from ..model.params import MotorParams, MotorRows, same_type
 from ..telemetry.table import TelemetryTable
 from .noise import BandNoise, require_noise
@@ -635,17 +635,13 @@ def _log_parts(
     total = sum(t.size for t in times.values())
     if total <= 2 * LOG_PART:
         return whole
-    every = np.concatenate(list(times.values()))
-    if not np.isfinite(every).all():
-        return whole
-    ranked = np.sort(every, kind="stable")  # each motor's in order already: a merge of sorted runs
     size = -(-total // round(total / LOG_PART))  # parts of one size, the nearest count to LOG_PART's
-    cuts = np.unique(ranked[size::size])
-    cuts = cuts[cuts > ranked[0]]  # (every part holds samples; an instant stays whole)
-    starts = {
-        m: np.concatenate([[0], np.searchsorted(t, cuts, side="left"), [t.size]]) for m, t in times.items()
-    }
-    return [{m: (int(at[k]), int(at[k + 1])) for m, at in starts.items()} for k in range(cuts.size + 1)]
+    bounds = part_bounds(list(times.values()), size)
+    if bounds is None:
+        return whole
+    return [
+        {m: (int(at[k]), int(at[k + 1])) for m, at in zip(times, bounds)} for k in range(bounds.shape[1] - 1)
+    ]
 
 
 def _keep(

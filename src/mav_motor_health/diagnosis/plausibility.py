@@ -260,9 +260,8 @@ def check_motor_rows(
         None if lengths is None else lengths * 2,
     )
     flags[stuck[:rows]] |= int(SensorIssue.CURRENT_STUCK)
-    flags[stuck[rows:] & (w > 0)] |= int(
-        SensorIssue.SPEED_STUCK
-    )  # a motor at rest reads 0 whatever its command
+    # a motor at rest reads 0 whatever its command
+    flags[stuck[rows:] & (w > 0)] |= int(SensorIssue.SPEED_STUCK)
     news = [PlausibilityCarry(current=stuck_carries[r], speed=stuck_carries[rows + r]) for r in range(rows)]
     return flags, news
 

@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._arrays import part_bounds
 from .prediction import SiblingPrediction
 
 __all__ = ["STAGE_QUANTITIES", "VehicleStage", "median_of_finite"]
@@ -312,23 +313,7 @@ def _chunks(time_s: NDArray[np.float64], counts: Sequence[int]) -> NDArray[np.in
     if total <= 2 * STREAM_CHUNK:
         return None
     times = np.asarray(time_s, dtype=float)
-    own = [times[r, :k] for r, k in enumerate(counts)]
-    every = np.concatenate(own)
-    if not np.isfinite(every).all():
-        return None
-    ranked = np.sort(
-        every, kind="stable"
-    )  # each row in order already: a merge of sorted runs, in linear time
-    # (no cut at the first instant: every part holds samples, and one instant of more samples than a part
-    # is never cut again)
-    cuts = np.unique(ranked[STREAM_CHUNK::STREAM_CHUNK])
-    cuts = cuts[cuts > ranked[0]]
-    if cuts.size == 0:
-        return None
-    # side="left": the samples of a cut's instant go with the part it begins (an instant stays whole)
-    starts = np.array([np.searchsorted(row, cuts, side="left") for row in own], dtype=np.intp)
-    ends = np.asarray(counts, dtype=np.intp)[:, None]
-    return np.concatenate([np.zeros((len(own), 1), dtype=np.intp), starts, ends], axis=1)
+    return part_bounds([times[r, :k] for r, k in enumerate(counts)], STREAM_CHUNK)
 
 
 def median_of_finite(values: NDArray[np.float64], need: int, axis: int = 1) -> NDArray[np.float64]:
