@@ -23,6 +23,12 @@ each sample's bands got read back from them (its band over the one the diagnosis
 and the same tails divided by it. The shipped M is the largest narrowing whose worst tail and count of
 tails above 1 on the development worlds are those of the growth by the excess alone.
 
+Last, the torque balance against its siblings (rules/equations.py), where identification measured its
+noise so: ``r_T`` less the siblings' median, less its offset, over its own σ(a, e), with no growth. Its
+tail within the limits, beyond them, and beyond them divided by the growth the shipped profile gives the
+torque's band there (the larger of the speed's and the current's growth as the siblings run,
+rules/bands.py): whether the torque's band, grown as the deviations', is as wide as the torque needs.
+
 The default worlds 1000-1019 are held out: the exponent was chosen on the development worlds 0-19.
 """
 
@@ -67,10 +73,12 @@ def _tail(z: np.ndarray) -> float:
 
 def one_world(
     world: int, duration_s: float, siblings: tuple[float, ...] = SIBLINGS
-) -> list[tuple[str, str, float, dict[str, tuple[float, float]]]]:
+) -> list[tuple[str, str, float, dict[str, tuple[float, float]], dict[str, float]]]:
     """Per healthy flight: (world label, level, share of samples beyond the limits within the reach,
     {growth: (speed tail, current tail)}, growth ``g=...`` by the excess's exponent, ``m=...`` bounded by
-    the siblings'); empty where identification refuses the world."""
+    the siblings'; the torque against its siblings' tails {``within`` the limits, ``beyond`` them with no
+    growth, ``m=...`` beyond them grown as the deviations' bands are}, empty where no motor is judged
+    so); empty where identification refuses the world."""
     shipped = load_profile("flight_vehicle")
     everywhere = dataclasses.replace(
         shipped, conditions_reach=100.0, conditions_growth=0.0, conditions_siblings=0.0
@@ -109,6 +117,10 @@ def one_world(
                     )
             z_speed, z_current, excess, total = [], [], [], 0
             by_sibling: dict[float, tuple[list, list]] = {m: ([], []) for m in siblings}
+            # the torque against its siblings in its own σ(a, e) (rules/equations.py), where measured so
+            z_torque: list[np.ndarray] = []
+            torque_excess: list[np.ndarray] = []
+            torque_grown: dict[float, list[np.ndarray]] = {m: [] for m in siblings}
             for motor in np.unique(d["motor"]):
                 rows = (d["motor"] == motor) & d["steady"] & (d["throttle"] >= shipped.min_command)
                 n = noise[int(motor)]
@@ -122,6 +134,13 @@ def one_world(
                 for m in siblings:
                     by_sibling[m][0].append(grown_by[m][0][rows])
                     by_sibling[m][1].append(grown_by[m][1][rows])
+                if n.torque_vs_siblings is not None:
+                    against = d["torque_residual_nm"][rows] - d["torque_siblings_nm"][rows]
+                    sigma = n.torque_vs_siblings.sigmas(a, e)
+                    z_torque.append((against - n.torque_vs_siblings.offset) / sigma)
+                    torque_excess.append(excess[-1])
+                    for m in siblings:  # the torque's band grows as the larger of the deviations' (bands.py)
+                        torque_grown[m].append(np.maximum(grown_by[m][0][rows], grown_by[m][1][rows]))
             zs, zc, x = (np.concatenate(v) for v in (z_speed, z_current, excess))
             region = (x > 1.0) & (x <= reach)
             tails = {
@@ -131,7 +150,16 @@ def one_world(
             for m in siblings:
                 fs, fc = (np.concatenate(v) for v in by_sibling[m])
                 tails[f"m={m:g}"] = (_tail(zs[region] / fs[region]), _tail(zc[region] / fc[region]))
-            out.append((label, flight.turbulence, float(np.count_nonzero(region)) / max(total, 1), tails))
+            torque = {}
+            if z_torque:
+                zt, xt = np.concatenate(z_torque), np.concatenate(torque_excess)
+                beyond = (xt > 1.0) & (xt <= reach)
+                torque = {"within": _tail(zt[xt <= 1.0]), "beyond": _tail(zt[beyond])}
+                for m in siblings:
+                    torque[f"m={m:g}"] = _tail(zt[beyond] / np.concatenate(torque_grown[m])[beyond])
+            out.append(
+                (label, flight.turbulence, float(np.count_nonzero(region)) / max(total, 1), tails, torque)
+            )
     return out
 
 
@@ -160,12 +188,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"beyond the identification flight's limits, up to {reach:g} x them; tail of |z| (1: sigma right)")
     print("world                   level     share  " + "  ".join(f"{g:<5s} speed/current" for g in growths))
     rows = [row for r in results for row in r]
-    for label, level, share, tails in rows:
+    for label, level, share, tails, _ in rows:
         cells = "  ".join(f"{s:5.2f} / {c:5.2f}      " for s, c in (tails[g] for g in growths))
         print(f"{label:23s} {level:9s} {100 * share:5.1f} %  {cells}")
     print()
     for g in growths:
-        worst = [max((t for t in tails[g] if np.isfinite(t)), default=float("nan")) for *_, tails in rows]
+        worst = [max((t for t in tails[g] if np.isfinite(t)), default=float("nan")) for *_, tails, _ in rows]
         worst = [w for w in worst if np.isfinite(w)]
         if not worst:
             continue
@@ -173,6 +201,24 @@ def main(argv: list[str] | None = None) -> int:
             f"growth {g}: over {len(worst)} flights with >= {MIN_SAMPLES} samples beyond, the larger tail "
             f"median {statistics.median(worst):.2f}, worst {max(worst):.2f}; above 1 on {sum(w > 1 for w in worst)}"
         )
+    torque_columns = ["within", "beyond"] + [f"m={m:g}" for m in siblings]
+    print(
+        "\nthe torque against its siblings in its own sigma(a, e) (rules/equations.py), tail of |z|: within the"
+        "\nlimits; beyond them (up to the reach) with no growth; beyond them grown as the deviations' bands (m=...)"
+    )
+    print("world                   level     " + "  ".join(f"{c:>7s}" for c in torque_columns))
+    for label, level, _, _, torque in rows:
+        if torque:
+            print(f"{label:23s} {level:9s} " + "  ".join(f"{torque[c]:7.2f}" for c in torque_columns))
+    for c in torque_columns:
+        for air in ("calm", "moderate", "gusty", None):
+            found = [t[c] for _, lv, _, _, t in rows if t and (air is None or lv == air)]
+            found = [x for x in found if np.isfinite(x)]
+            if found:
+                print(
+                    f"torque {c:7s} {air or 'all':9s}: over {len(found)} flights, tail median "
+                    f"{statistics.median(found):.2f}, worst {max(found):.2f}; above 1 on {sum(x > 1 for x in found)}"
+                )
     if refused:
         print(f"(refused by identification: {', '.join(map(str, refused))})")
     print(f"\n(benchmark took {time.monotonic() - started:.0f} s)")
