@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mav_motor_health.errors import ConfigError
 from mav_motor_health.model.equations import steady_state
 from mav_motor_health.sim.faults import FaultSpec, effects_at
 from mav_motor_health.sim.motor import MotorBank, MotorDynamics
@@ -69,6 +70,25 @@ def test_turning_faults_move_speed_and_current_as_in_the_paper(paper_motor, faul
     assert np.all(di > 0) if current == "higher" else np.all(di < 0)
     if fault == "F4.1":  # little difference at low speed, more at high speed
         assert abs(dw[0]) < abs(dw[-1]) and abs(di[0]) < abs(di[-1])
+
+
+@pytest.mark.parametrize("fault", ["F1.1", "F4.1"])
+def test_friction_and_an_open_transistor_have_stronger_forms_than_the_paper_s(paper_motor, fault):
+    # more friction, less drive: the motor slows further the stronger the fault, beyond the paper's strength
+    # too (the severity floor's rungs beyond 1, evaluation/severity.py)
+    volts = CASES_V[[2, 2, 2]]
+    bank = settle(
+        paper_motor, volts, [FaultSpec(fault, j + 1, 0.0, severity=s) for j, s in enumerate((1, 2, 5))]
+    )
+    assert bank.omega_rad_s[0] > bank.omega_rad_s[1] > bank.omega_rad_s[2]
+
+
+@pytest.mark.parametrize(
+    ("fault", "severity"), [("F3.1", 1.5), ("F2.1", 2.0), ("F1.1", 11.0), ("F4.1", -0.1)]
+)
+def test_a_severity_beyond_the_fault_s_forms_is_refused(fault, severity):
+    with pytest.raises(ConfigError, match=r"fault\.severity"):
+        FaultSpec(fault, 1, 0.0, severity=severity)
 
 
 def test_f31_speed_rise_is_capped_by_the_free_speed(paper_motor):

@@ -30,7 +30,8 @@ def test_every_bundled_scenario_loads():
         ('[scenario]\nmode = "boat"\n', "scenario.mode"),
         ("[scenario]\nduration_s = -1\n", "scenario.duration_s"),
         ('[[fault]]\nkind = "F9.9"\nonset_s = 1\n', "fault[0]"),
-        ('[[fault]]\nkind = "F1.1"\nonset_s = 1\nseverity = 3\n', "fault[0]"),
+        ('[[fault]]\nkind = "F3.1"\nonset_s = 1\nseverity = 3\n', "fault[0]"),  # more than the blade
+        ('[[fault]]\nkind = "F1.1"\nonset_s = 1\nseverity = 11\n', "fault[0]"),  # beyond its stronger forms
         ('[flight]\nturbulence = "stormy"\n', "flight.turbulence"),
         ("[sensors]\nrate_hz = [50, 10]\n", "sensors.rate_hz"),
         ("[scenario]\nspeed = 3\n", "scenario"),

@@ -18,9 +18,15 @@ For one world (:func:`~mav_motor_health.sim.worlds.draw_world`), :func:`severity
    motor (it cannot tell faults apart, so any flag counts as its class) and none elsewhere.
 
 A method's floor for a fault is the smallest severity from which every flight of the ladder up to the
-strongest is named (``inf``: not even the strongest). Where the ESCs report no usable current the baseline
-cannot be fitted and its floors are ``inf`` (:attr:`WorldSeverity.baseline`: why). Seeded: the same world
-gives the same flights.
+paper's strength (1) is named. Where a method names no fault of the ladder at 1 (the baseline, whose
+bands must hold a healthy flight's climbs and turns, on most worlds), a quarter of its floor would be no
+number, so F1.1 and F4.1, whose faults have stronger forms, are also flown beyond it (:data:`BEYOND`:
+1.5 to 5 times the paper's rubbing bar, a drive of 1/4 to 1/11), and the floor is then the weakest of
+those rungs it names (``inf``: none). A rung beyond 1 stands on its own, not for every stronger one:
+friction five times the paper's may stall a motor, which is then named a stall, not friction. F3.1 has
+no stronger form (1 is the whole blade cut off). Where the ESCs report no usable current the baseline
+cannot be fitted and its floors are ``inf`` (:attr:`WorldSeverity.baseline`: why). Seeded: the same
+world gives the same flights, and the rungs beyond 1 their own seeds after the ladder's.
 """
 
 from __future__ import annotations
@@ -49,6 +55,8 @@ from .score import read_diagnosis, read_truth, score
 from .worlds import MAX_FLIGHTS_PER_WORLD, describe_world, fly_world, identify_world
 
 __all__ = [
+    "BEYOND",
+    "BEYOND_FAULTS",
     "SEVERITIES",
     "SEVERITY_FAULTS",
     "WITHIN_S",
@@ -62,6 +70,9 @@ __all__ = [
 SEVERITIES = (0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0)
 #: the faults with a partial form (F2.1 and F4.2 are stalls: all or nothing)
 SEVERITY_FAULTS = ("F1.1", "F3.1", "F4.1")
+#: the rungs beyond the paper's strength (module doc), for the faults that have a stronger form
+BEYOND = (1.5, 2.0, 3.0, 5.0)
+BEYOND_FAULTS = ("F1.1", "F4.1")
 #: a fault counts as named when named within this long after onset [s] (issue 17)
 WITHIN_S = 3.0
 #: the ladder's flights take the world's seeds from this index on (world_flights' flights come first)
@@ -102,14 +113,19 @@ class WorldSeverity:
     seconds: float = 0.0
 
     def floor(self, fault: str, method: str) -> float:
-        """The smallest severity from which every stronger flight of ``fault`` is named by ``method``
-        (``"ours"`` or ``"baseline"``); ``inf`` where the strongest is not."""
-        ladder = sorted((t for t in self.trials if t.fault == fault), key=lambda t: t.severity)
+        """The smallest severity from which every stronger flight of ``fault`` up to the paper's strength
+        (1) is named by ``method`` (``"ours"`` or ``"baseline"``); where the flight at 1 is not, the
+        weakest rung beyond 1 that is (module doc); ``inf`` where none is."""
+        trials = [t for t in self.trials if t.fault == fault]
+        ladder = sorted((t for t in trials if t.severity <= 1.0), key=lambda t: t.severity)
         floor = math.inf
         for trial in reversed(ladder):
             if not trial.named(method):
                 break
             floor = trial.severity
+        if math.isinf(floor):
+            named = [t.severity for t in trials if t.severity > 1.0 and t.named(method)]
+            floor = min(named, default=math.inf)
         return floor
 
 
@@ -134,19 +150,28 @@ def severity_world(
     *,
     severities: Sequence[float] = SEVERITIES,
     faults: Sequence[str] = SEVERITY_FAULTS,
+    beyond: Sequence[float] = BEYOND,
     duration_s: float = 30.0,
     onset_s: float = 15.0,
     profile: str | Path | ThresholdProfile = "flight_vehicle",
     identification_s: float = 150.0,
 ) -> WorldSeverity:
-    """Identify ``world`` and fit the baseline on its healthy flight, then fly the severity ladder (module
-    docstring)."""
+    """Identify ``world`` and fit the baseline on its healthy flight, then fly the severity ladder and,
+    for :data:`BEYOND_FAULTS`, the rungs ``beyond`` it (module docstring; ``()``: none)."""
     if not 0 < onset_s < duration_s:
         raise ValueError(f"onset_s must lie inside the flight (0 < {onset_s} < {duration_s})")
     unknown = [f for f in faults if f not in SEVERITY_FAULTS]
     if unknown:
         raise ValueError(f"faults {unknown}: expected some of {SEVERITY_FAULTS}")
-    if len(SEVERITY_FAULTS) * len(severities) > MAX_FLIGHTS_PER_WORLD - _SEED_INDEX:
+    if any(not 0 < s <= 1 for s in severities) or any(not s > 1 for s in beyond):
+        raise ValueError(
+            f"severities {list(severities)} must lie in (0, 1] and beyond {list(beyond)} above 1 "
+            "(1: the paper's strength)"
+        )
+    # the rungs beyond 1 take their seeds after the ladder's (the default ladder's at least: its flights keep
+    # the seeds they had before there were rungs beyond 1)
+    beyond_index = _SEED_INDEX + len(SEVERITY_FAULTS) * max(len(severities), len(SEVERITIES))
+    if beyond_index + len(BEYOND_FAULTS) * len(beyond) > MAX_FLIGHTS_PER_WORLD:
         raise ValueError(f"at most {MAX_FLIGHTS_PER_WORLD - _SEED_INDEX} ladder flights per world")
     started = time.monotonic()
     the_world = draw_world(world)
@@ -172,8 +197,12 @@ def severity_world(
         for fault in faults:
             # the full ladder's seed, whatever subset is asked for (as world_flights keeps its flights)
             j = SEVERITY_FAULTS.index(fault)
-            for k, severity in enumerate(severities):
-                seed = (world + 1) * MAX_FLIGHTS_PER_WORLD + _SEED_INDEX + j * len(severities) + k
+            rungs = [(_SEED_INDEX + j * len(severities) + k, s) for k, s in enumerate(severities)]
+            if fault in BEYOND_FAULTS:
+                b = BEYOND_FAULTS.index(fault)
+                rungs += [(beyond_index + b * len(beyond) + k, s) for k, s in enumerate(beyond)]
+            for index, severity in rungs:
+                seed = (world + 1) * MAX_FLIGHTS_PER_WORLD + index
                 spec = FaultSpec(kind=fault, motor=motors[fault], onset_s=onset_s, severity=float(severity))
                 name = f"world{world}_calm_{fault}_s{severity:g}_seed{seed}"
                 path, out = folder / f"{name}.tlog", folder / f"{name}.replay"

@@ -25,7 +25,9 @@ Each fault acts on one motor from ``onset_s`` on, scaled by ``severity`` (1.0: a
 ==========  =================================================================================
 
 F2.1 and F4.2 have no partial form in the paper (a phase is open or it is not); their severity scales
-the stall current only.
+the stall current only. Severities lie in 0..1, but F1.1 and F4.1 have stronger forms than the paper's
+(more friction, less drive): up to ``STRONGER_MAX`` = 10 (the severity floor's rungs beyond the paper's
+strength, :mod:`..evaluation.severity`).
 
 The absolute constants (the rubbing bar's torque, the stall currents) are the paper's X2212's. On another
 motor (a randomised world, :mod:`.worlds`) a :class:`FaultScale` carries them over in proportion to the
@@ -41,9 +43,14 @@ from numpy.typing import NDArray
 
 from ..errors import ConfigError
 
-__all__ = ["FAULT_KINDS", "FaultEffects", "FaultScale", "FaultSpec", "effects_at"]
+__all__ = ["FAULT_KINDS", "STRONGER_FORMS", "FaultEffects", "FaultScale", "FaultSpec", "effects_at"]
 
 FAULT_KINDS = ("F1.1", "F2.1", "F3.1", "F4.1", "F4.2")
+#: the faults with a stronger form than the paper's (severity above 1): more friction than its rubbing bar,
+#: less drive than its open transistor left (a blade cannot lose more than its length; a stall's severity
+#: scales a current the paper measured); up to :data:`STRONGER_MAX` times the paper's
+STRONGER_FORMS = ("F1.1", "F4.1")
+STRONGER_MAX = 10.0
 
 #: F1.1: friction torque of the rubbing bar at severity 1 [N·m] and its speed-proportional part [N·m·s/rad].
 RUB_TORQUE_NM = 0.012
@@ -95,9 +102,17 @@ class FaultSpec:
             object.__setattr__(self, "severity", PAPER_TRIM_SEVERITY if self.kind == "F3.1" else 1.0)
         if not 1 <= self.motor <= 12:
             raise ConfigError(f"{self.motor!r}", key="fault.motor", expected="a motor number 1..12")
-        if not 0.0 <= self.strength <= 1.0:
+        top = STRONGER_MAX if self.kind in STRONGER_FORMS else 1.0
+        if not 0.0 <= self.strength <= top:
             raise ConfigError(
-                f"{self.severity!r}", key="fault.severity", expected="a severity between 0 and 1"
+                f"{self.severity!r} for {self.kind}",
+                key="fault.severity",
+                expected=f"a severity between 0 and {top:g}"
+                + (
+                    f" (above 1 only {' and '.join(STRONGER_FORMS)}, which have stronger forms)"
+                    if top == 1.0
+                    else ""
+                ),
             )
         if not self.onset_s >= 0:
             raise ConfigError(f"{self.onset_s!r}", key="fault.onset_s", expected="a time >= 0 s")
