@@ -20,14 +20,20 @@ how many flights' tails exceed 1. ``conditions_growth`` is the exponent whose wo
 ``--siblings M ...`` adds the growth bounded by the siblings' (rules/bands.py, "Grown as the siblings
 run"): the flight diagnosed again with the shipped profile and ``conditions_siblings`` = M, the growth
 each sample's bands got read back from them (its band over the one the diagnosis without growth gave),
-and the same tails divided by it. The shipped M is the largest narrowing whose worst tail and count of
-tails above 1 on the development worlds are those of the growth by the excess alone.
+and the same tails divided by it (``M/TAU``: with ``conditions_siblings_s`` = TAU seconds too). The
+shipped M is the largest narrowing whose worst tail and count of tails above 1 on the development worlds
+are those of the growth by the excess alone.
 
 Last, the torque balance against its siblings (rules/equations.py), where identification measured its
 noise so: ``r_T`` less the siblings' median, less its offset, over its own σ(a, e), with no growth. Its
 tail within the limits, beyond them, and beyond them divided by the growth the shipped profile gives the
-torque's band there (the larger of the speed's and the current's growth as the siblings run,
-rules/bands.py): whether the torque's band, grown as the deviations', is as wide as the torque needs.
+torque's band there as the deviations' (the larger of the speed's and the current's growth as the
+siblings run, rules/bands.py, the columns ``m=...``): whether that is as wide as the torque needs.
+``--torque-spread T ...`` adds the torque's own growth (rules/bands.py, "The torque's own growth"): the
+flight diagnosed with ``torque_siblings_spread`` = T, the growth of each sample's torque band read back as
+the deviations' is, and the torque's tail beyond the limits divided by it (columns ``T=...``; the
+shipped profile's is 3, chosen on the development worlds as the smallest whole multiple whose worst tail
+stays below 1.5).
 
 The default worlds 1000-1019 are held out: the exponent was chosen on the development worlds 0-19.
 """
@@ -61,8 +67,9 @@ from mav_motor_health.sim.writers import write_record  # noqa: E402
 from mav_motor_health.telemetry import sources  # noqa: E402
 
 EXPONENTS = (0.0, 1.0, 1.5, 2.0)
-#: the siblings' multipliers evaluated by default (``--siblings``): the shipped one
-SIBLINGS = (4.0,)
+#: the siblings' bounds evaluated by default (``--siblings``): the shipped multiplier, at the shipped time
+#: constant (None)
+SIBLINGS: tuple[tuple[float, float | None], ...] = ((4.0, None),)
 MIN_SAMPLES = 100  # a tail on fewer samples than this is not reported
 
 
@@ -71,8 +78,25 @@ def _tail(z: np.ndarray) -> float:
     return float(np.quantile(np.abs(z), 0.99) / 2.576) if z.size >= MIN_SAMPLES else float("nan")
 
 
+def _bound(text: str) -> tuple[float, float | None]:
+    """``--siblings``' M or M/TAU."""
+    m, _, tau = text.partition("/")
+    try:
+        return float(m), float(tau) if tau else None
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected M or M/TAU (numbers)") from None
+
+
+def _label(bound: tuple[float, float | None]) -> str:
+    m, tau = bound
+    return f"m={m:g}" if tau is None else f"m={m:g}/{tau:g}s"
+
+
 def one_world(
-    world: int, duration_s: float, siblings: tuple[float, ...] = SIBLINGS
+    world: int,
+    duration_s: float,
+    siblings: tuple[tuple[float, float | None], ...] = SIBLINGS,
+    torque_spreads: tuple[float, ...] = (),
 ) -> list[tuple[str, str, float, dict[str, tuple[float, float]], dict[str, float]]]:
     """Per healthy flight: (world label, level, share of samples beyond the limits within the reach,
     {growth: (speed tail, current tail)}, growth ``g=...`` by the excess's exponent, ``m=...`` bounded by
@@ -81,7 +105,11 @@ def one_world(
     so); empty where identification refuses the world."""
     shipped = load_profile("flight_vehicle")
     everywhere = dataclasses.replace(
-        shipped, conditions_reach=100.0, conditions_growth=0.0, conditions_siblings=0.0
+        shipped,
+        conditions_reach=100.0,
+        conditions_growth=0.0,
+        conditions_siblings=0.0,
+        torque_siblings_spread=0.0,
     )
     reach = shipped.conditions_reach
     out = []
@@ -108,19 +136,32 @@ def one_world(
             # the bands with the siblings' bound, over the bands without growth: the growth each sample got
             grown_by = {}
             for m in siblings:
-                bounded = dataclasses.replace(shipped, conditions_siblings=m)
+                bounded = dataclasses.replace(
+                    shipped,
+                    conditions_siblings=m[0],
+                    conditions_siblings_s=shipped.conditions_siblings_s if m[1] is None else m[1],
+                )
                 g = diagnose(table, params, bounded, noise)
                 with np.errstate(divide="ignore", invalid="ignore"):
                     grown_by[m] = (
                         g["speed_band_rad_s"] / d["speed_band_rad_s"],
                         g["current_band_a"] / d["current_band_a"],
                     )
+            # the torque's band grown by its siblings' spread (rules/bands.py, "The torque's own growth"),
+            # over the band without growth: the growth each sample's torque band got
+            torque_by = {}
+            for m in torque_spreads:
+                spread = dataclasses.replace(shipped, torque_siblings_spread=m)
+                g = diagnose(table, params, spread, noise)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    torque_by[m] = g["torque_band_nm"] / d["torque_band_nm"]
             z_speed, z_current, excess, total = [], [], [], 0
-            by_sibling: dict[float, tuple[list, list]] = {m: ([], []) for m in siblings}
+            by_sibling: dict[tuple[float, float | None], tuple[list, list]] = {m: ([], []) for m in siblings}
             # the torque against its siblings in its own σ(a, e) (rules/equations.py), where measured so
             z_torque: list[np.ndarray] = []
             torque_excess: list[np.ndarray] = []
-            torque_grown: dict[float, list[np.ndarray]] = {m: [] for m in siblings}
+            torque_grown: dict[tuple[float, float | None], list[np.ndarray]] = {m: [] for m in siblings}
+            torque_spread: dict[float, list[np.ndarray]] = {m: [] for m in torque_spreads}
             for motor in np.unique(d["motor"]):
                 rows = (d["motor"] == motor) & d["steady"] & (d["throttle"] >= shipped.min_command)
                 n = noise[int(motor)]
@@ -141,6 +182,8 @@ def one_world(
                     torque_excess.append(excess[-1])
                     for m in siblings:  # the torque's band grows as the larger of the deviations' (bands.py)
                         torque_grown[m].append(np.maximum(grown_by[m][0][rows], grown_by[m][1][rows]))
+                    for t in torque_spreads:
+                        torque_spread[t].append(torque_by[t][rows])
             zs, zc, x = (np.concatenate(v) for v in (z_speed, z_current, excess))
             region = (x > 1.0) & (x <= reach)
             tails = {
@@ -149,14 +192,16 @@ def one_world(
             }
             for m in siblings:
                 fs, fc = (np.concatenate(v) for v in by_sibling[m])
-                tails[f"m={m:g}"] = (_tail(zs[region] / fs[region]), _tail(zc[region] / fc[region]))
+                tails[_label(m)] = (_tail(zs[region] / fs[region]), _tail(zc[region] / fc[region]))
             torque = {}
             if z_torque:
                 zt, xt = np.concatenate(z_torque), np.concatenate(torque_excess)
                 beyond = (xt > 1.0) & (xt <= reach)
                 torque = {"within": _tail(zt[xt <= 1.0]), "beyond": _tail(zt[beyond])}
                 for m in siblings:
-                    torque[f"m={m:g}"] = _tail(zt[beyond] / np.concatenate(torque_grown[m])[beyond])
+                    torque[_label(m)] = _tail(zt[beyond] / np.concatenate(torque_grown[m])[beyond])
+                for t in torque_spreads:
+                    torque[f"T={t:g}"] = _tail(zt[beyond] / np.concatenate(torque_spread[t])[beyond])
             out.append(
                 (label, flight.turbulence, float(np.count_nonzero(region)) / max(total, 1), tails, torque)
             )
@@ -171,18 +216,35 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument(
         "--siblings",
-        type=float,
+        type=_bound,
         nargs="*",
         default=list(SIBLINGS),
-        help="conditions_siblings multipliers to evaluate (default: the shipped 4)",
+        help="conditions_siblings multipliers to evaluate, each M or M/TAU (TAU: conditions_siblings_s in "
+        "seconds; default: the shipped 4 at the shipped time constant)",
+    )
+    parser.add_argument(
+        "--torque-spread",
+        type=float,
+        nargs="*",
+        default=[],
+        help="torque_siblings_spread multipliers to evaluate (the torque's band grown by its siblings' spread, "
+        "columns T=...; default: none)",
     )
     args = parser.parse_args(argv)
     started = time.monotonic()
     worlds = list(range(args.first, args.first + args.count))
     siblings = tuple(args.siblings)
-    growths = [f"g={g:g}" for g in EXPONENTS] + [f"m={m:g}" for m in siblings]
+    growths = [f"g={g:g}" for g in EXPONENTS] + [_label(m) for m in siblings]
     with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        results = list(pool.map(one_world, worlds, [args.duration_s] * len(worlds), [siblings] * len(worlds)))
+        results = list(
+            pool.map(
+                one_world,
+                worlds,
+                [args.duration_s] * len(worlds),
+                [siblings] * len(worlds),
+                [tuple(args.torque_spread)] * len(worlds),
+            )
+        )
     refused = [w for w, r in zip(worlds, results) if not r]
     reach = load_profile("flight_vehicle").conditions_reach
     print(f"beyond the identification flight's limits, up to {reach:g} x them; tail of |z| (1: sigma right)")
@@ -201,7 +263,8 @@ def main(argv: list[str] | None = None) -> int:
             f"growth {g}: over {len(worst)} flights with >= {MIN_SAMPLES} samples beyond, the larger tail "
             f"median {statistics.median(worst):.2f}, worst {max(worst):.2f}; above 1 on {sum(w > 1 for w in worst)}"
         )
-    torque_columns = ["within", "beyond"] + [f"m={m:g}" for m in siblings]
+    torque_columns = ["within", "beyond"] + [_label(m) for m in siblings]
+    torque_columns += [f"T={t:g}" for t in args.torque_spread]
     print(
         "\nthe torque against its siblings in its own sigma(a, e) (rules/equations.py), tail of |z|: within the"
         "\nlimits; beyond them (up to the reach) with no growth; beyond them grown as the deviations' bands (m=...)"

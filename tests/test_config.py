@@ -94,6 +94,8 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ("[profile]\nconditions_growth = -1\n", "profile.conditions_growth"),
         ("[profile]\nrange_growth = 5\n", "profile.range_growth"),
         ("[profile]\nrange_growth = 1\n", "profile.range_growth"),  # without range_margin: nothing to grow in
+        ("[profile]\ntorque_siblings_spread = -1\n", "profile.torque_siblings_spread"),
+        ("[profile]\ntorque_siblings_spread = 101\n", "profile.torque_siblings_spread"),
     ],
 )
 def test_bad_profiles(tmp_path: Path, text: str, key: str) -> None:

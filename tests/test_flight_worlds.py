@@ -367,7 +367,7 @@ def test_the_torques_slow_look_names_and_announces_friction_in_gusty_air(tmp_pat
     """The torque against its siblings averaged as long as the slow look averages the deviations
     (rules/equations.py, "The slow look"), judged against its own measured noise, with its evidence in
     the sequential test (detection.py, "The slow look's evidence"): friction in gusty air, which the fast
-    look reads NORMAL on nearly every sample, is named on most and announced; no other motor is announced;
+    look reads NORMAL on most samples, is named on most and announced; no other motor is announced;
     the live agent's batches give replay's states and announcements."""
     import dataclasses
 
@@ -386,8 +386,10 @@ def test_the_torques_slow_look_names_and_announces_friction_in_gusty_air(tmp_pat
     after = (slow["motor"] == flight.motor) & (slow["time_s"] > flight.onset_s) & slow["steady"].astype(bool)
     named = [(r["state"][after] == MotorState.F1_1).mean() for r in (plain, slow)]
     announced = [(r["announced"][after] == MotorState.F1_1).mean() for r in (plain, slow)]
-    assert named[0] < 0.1 and named[1] > named[0] + 0.5, named
-    assert announced[0] == 0.0 and announced[1] > 0.3, announced
+    # (the fast look alone names it on under a quarter: 23 % with the torque's own growth, under 10 %
+    # with the deviations' growth, rules/bands.py)
+    assert named[0] < 0.3 and named[1] > named[0] + 0.5, named
+    assert announced[0] < 0.2 and announced[1] > announced[0] + 0.3, announced
     others = slow["motor"] != flight.motor
     assert (slow["announced"][others] == MotorState.NORMAL).all()
     _streams_as_replay(flight, tmp_path, vehicle, shipped, slow)

@@ -87,6 +87,34 @@ def test_pieces_in_arrival_order_give_what_the_whole_gives() -> None:
     np.testing.assert_array_equal(np.array(pieces), whole)
 
 
+def test_the_siblings_spread_is_their_median_absolute_deviation_as_a_sigma() -> None:
+    """Where asked (``spreads``), the stage gives how far the other motors' values lie from their median:
+    their median absolute deviation from it, as a standard deviation (diagnosis/siblings.py, "The
+    siblings' spread"); one sibling far off moves it as little as it moves the median."""
+    from mav_motor_health.diagnosis.siblings import MAD_TO_SIGMA, SPREAD
+
+    motors = [1, 2, 3, 4, 5, 6]
+    t = np.zeros((6, 1))
+    v = rows([[1.0], [2.0], [3.0], [4.0], [10.0], [6.0]])
+    age = np.full(t.shape, 1.0)
+    plain = VehicleStage(list(motors)).references(motors, t, {"torque_residual_nm": v}, [1] * 6, age)
+    assert set(plain) == {"torque_residual_nm"}  # not asked: no spread
+    stage = VehicleStage(list(motors), spreads=("torque_residual_nm",))
+    got = stage.references(motors, t, {"torque_residual_nm": v}, [1] * 6, age)
+    spread = got["torque_residual_nm" + SPREAD]
+    # motor 6 arrives last: its siblings 1, 2, 3, 4 and 10, median 3, deviations 2, 1, 0, 1, 7
+    assert got["torque_residual_nm"][5, 0] == 3.0
+    assert spread[5, 0] == MAD_TO_SIGMA * 1.0
+    # motor 4 sees 1, 2 and 3 (three: enough): median 2, deviations 1, 0, 1
+    assert spread[3, 0] == MAD_TO_SIGMA * 1.0
+    # motors 1 to 3 have fewer than three siblings before them: no reference, no spread
+    assert np.isnan(spread[:3, 0]).all()
+    # the spread comes with the median from the carried values in a later call
+    later = stage.references(motors, np.ones((6, 1)), {"torque_residual_nm": v + 100.0}, [1] * 6, age)
+    # motor 1 at t = 1: its siblings' carried 2, 3, 4, 10 and 6, median 4, deviations 2, 1, 0, 6, 2
+    assert later["torque_residual_nm" + SPREAD][0, 0] == MAD_TO_SIGMA * 2.0
+
+
 def test_the_median_of_finite_values_needs_enough_of_them() -> None:
     values = rows([[1.0, 5.0, np.nan, 3.0], [np.nan, np.nan, 2.0, np.nan], [4.0, 1.0, 2.0, 3.0]])
     np.testing.assert_array_equal(median_of_finite(values, 2), [3.0, np.nan, 2.5])
@@ -284,7 +312,12 @@ def test_a_whole_log_worked_out_in_parts_gives_the_references_of_one_call(monkey
     assert prediction is not None
 
     def run() -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict]:  # type: ignore[type-arg]
-        stage = VehicleStage(list(motors), alike={"torque_residual_nm": 0.1}, prediction=prediction)
+        stage = VehicleStage(
+            list(motors),
+            alike={"torque_residual_nm": 0.1},
+            prediction=prediction,
+            spreads=("torque_residual_nm",),
+        )
         first = stage.references(motors, times, values, [n] * 6, age, speeds, in_range)
         later = {name: v[:, :50] for name, v in values.items()}
         second = stage.references(
@@ -298,7 +331,8 @@ def test_a_whole_log_worked_out_in_parts_gives_the_references_of_one_call(monkey
     assert siblings._chunks(times, [n] * 6) is not None  # the call is cut into parts
     assert siblings._chunks(times, [n] * 6).shape[1] > 30
     parts = run()
-    for name in names:
+    assert set(whole[0]) == {*names, "torque_residual_nm" + siblings.SPREAD}
+    for name in whole[0]:
         assert np.isfinite(whole[0][name]).mean() > 0.2, name
         np.testing.assert_array_equal(parts[0][name], whole[0][name], err_msg=name)
         np.testing.assert_array_equal(parts[1][name], whole[1][name], err_msg=name)

@@ -204,17 +204,24 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
 
 
 @pytest.mark.parametrize(
-    "limited, step_sigmas, against",
-    [(False, 0.0, False), (True, 0.0, False), (True, 1.0, False), (True, 0.0, True)],
+    "limited, step_sigmas, against, torque_spread",
+    [
+        (False, 0.0, False, 0.0),
+        (True, 0.0, False, 0.0),
+        (True, 1.0, False, 0.0),
+        (True, 0.0, True, 0.0),
+        (True, 0.0, False, 1.0),
+    ],
     ids=[
         "within the conditions",
         "grown as siblings run",
         "a step in the motor's own noise",
         "the speed against the siblings' prediction",
+        "the torque's band grown by its siblings' spread",
     ],
 )
 def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
-    paper_motor, limited, step_sigmas, against
+    paper_motor, limited, step_sigmas, against, torque_spread
 ) -> None:
     """With the torque judged against the siblings (diagnosis/siblings.py), a motor's results depend on
     the others': batches cut in the order samples arrive (time, then motor) through
@@ -226,7 +233,9 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
     the model speed jumps by that many σ of the motor's noise (rules/balance.py), the model speed of a
     batch's first sample compared with the one carried from the batch before. ``against``: the speed
     judged less the siblings' linear prediction (diagnosis/prediction.py), from a covariance whose
-    motors move together, so that the prediction takes part of every motor's deviation off."""
+    motors move together, so that the prediction takes part of every motor's deviation off.
+    ``torque_spread``: the torque's band grown beyond the conditions by its siblings' spread (the stage's,
+    low-passed by the bands with a carry of their own: rules/bands.py, "The torque's own growth")."""
     motors = _window(lost=False)
     from mav_motor_health.diagnosis.pipeline import diagnose
     from mav_motor_health.telemetry.table import TelemetryTable
@@ -239,6 +248,8 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
             profile, steady=dataclasses.replace(profile.steady, step_sigmas=step_sigmas)
         )
     noise = stage_noise(motors)
+    if torque_spread:
+        profile = dataclasses.replace(profile, torque_siblings_spread=torque_spread)
     if against:
         profile = dataclasses.replace(profile, speed_against_siblings=1.0)
         # every pair correlated 0.5, each motor its own variance
@@ -278,6 +289,17 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
         assert (band >= sigma * (1 - 1e-9)).all()
         assert (band < 0.9 * sigma * np.maximum(excess, 1.0) ** profile.conditions_growth).mean() > 0.05
     assert np.isfinite(whole["torque_siblings_nm"]).mean() > 0.5  # the stage ran
+    if torque_spread:  # narrower than the deviations' growth somewhere, never below the torque's σ
+        grown = diagnose(table, paper_motor, base, noise)
+        ratio = whole["torque_band_nm"] / grown["torque_band_nm"]
+        judged = np.isfinite(ratio)
+        assert judged.mean() > 0.5 and (ratio[judged] <= 1.0 + 1e-12).all()
+        assert (ratio[judged] < 0.9).mean() > 0.05
+        a, e = whole["input_activity_v"], whole["pairing_error_rad_s"]
+        for m in motors:
+            rows_m = (whole["motor"] == m) & np.isfinite(whole["torque_band_nm"])
+            sigma = noise[m].torque_vs_siblings.sigmas(a[rows_m], e[rows_m])
+            assert (whole["torque_band_nm"][rows_m] >= profile.equation_bands * sigma * (1 - 1e-9)).all()
     if against:  # the prediction made, and the speed judged against it
         assert np.isfinite(whole["speed_siblings_rad_s"]).mean() > 0.3
         alone = diagnose(table, paper_motor, base, noise)
@@ -299,6 +321,7 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
         "current_band_a",
         "speed_siblings_rad_s",
         "omega_judged_rad_s",
+        "torque_band_nm",
     )
     got = {name: np.full(len(whole), np.nan) for name in compared}
     k = 0

@@ -38,7 +38,7 @@ from .plausibility import CurrentSumCheck, SensorIssue
 from .prediction import MIN_COVARIANCE_SAMPLES, SiblingPrediction
 from .profile import ThresholdProfile
 from .rules.base import Frame, Rule
-from .siblings import PREDICTED, STAGE_QUANTITIES, VehicleStage
+from .siblings import PREDICTED, SPREAD, STAGE_QUANTITIES, STAGE_SPREADS, VehicleStage
 from .states import MotorState
 from .vehicle_check import VehicleCheck, VehicleFit, apply_vehicle_fit
 
@@ -282,7 +282,15 @@ def vehicle_stage(
     # the torque against siblings at its own speed, within the margin the model is trusted beyond its
     # identified speeds (siblings.py, "Beyond the identified speeds")
     alike = {"torque_residual_nm": profile.range_margin} if profile.range_margin > 0 else {}
-    return VehicleStage([int(m) for m in motors], tuple(quantities), alike=alike, prediction=prediction)
+    # the siblings' torque spread, where the bands grow with it (rules/bands.py)
+    spreads = ("torque_residual_nm",) if profile.torque_siblings_spread > 0 else ()
+    return VehicleStage(
+        [int(m) for m in motors],
+        tuple(quantities),
+        alike=alike,
+        prediction=prediction,
+        spreads=tuple(s for s in spreads if s in quantities),
+    )
 
 
 def _warn_without_prediction(profile: ThresholdProfile) -> None:
@@ -300,6 +308,10 @@ def _warn_without_prediction(profile: ThresholdProfile) -> None:
         UserWarning,
         stacklevel=3,
     )
+
+
+#: what the vehicle stage gives (its result's key) and the frame field each goes to
+_STAGE_OUTPUTS = STAGE_QUANTITIES + tuple((name + SPREAD, into) for name, into in STAGE_SPREADS)
 
 
 def run_vehicle_stage(
@@ -344,7 +356,7 @@ def run_vehicle_stage(
             stacked("omega_model_rad_s") if stage.alike or stage.prediction else None,
             stacked("within_identified_speeds", False) if stage.alike or stage.prediction else None,
         )
-        for name, into in STAGE_QUANTITIES:
+        for name, into in _STAGE_OUTPUTS:
             if name not in found:
                 continue
             r = 0
@@ -434,7 +446,7 @@ class StartedCall:
         frame = self.frame
         if frame is None:
             return {name: np.zeros((len(self.carries), 0)) for name in _RESULT_COLUMNS}, self.carries
-        for _, into in STAGE_QUANTITIES:
+        for _, into in _STAGE_OUTPUTS:
             setattr(frame, into, None if references is None else references.get(into))
         _run_rules(frame, self.rest, self.carries, self.new)
         return _result_columns(frame), [MotorCarry(rules) for rules in self.new]
@@ -544,6 +556,7 @@ def _result_columns(frame: Frame) -> dict[str, NDArray]:
         "voltage_residual_v": nan_unless(frame.voltage_residual_v),
         "torque_slow_nm": nan_unless(frame.torque_slow_nm),
         "speed_siblings_rad_s": nan_unless(frame.speed_siblings_rad_s),
+        "torque_band_nm": nan_unless(frame.torque_band_nm),
     }
 
 
@@ -576,6 +589,7 @@ _RESULT_COLUMNS = (
     *RESIDUAL_COLUMNS,
     "torque_slow_nm",
     "speed_siblings_rad_s",
+    "torque_band_nm",
 )
 
 
@@ -708,6 +722,7 @@ def diagnose(
         "voltage_residual_v": np.full(n, np.nan),
         "torque_slow_nm": np.full(n, np.nan),
         "speed_siblings_rad_s": np.full(n, np.nan),
+        "torque_band_nm": np.full(n, np.nan),
     }
     motors = ordered["motor"]
     # each sample's pairing with its command (a log's column, telemetry/assemble.py); a table without
@@ -849,6 +864,7 @@ def diagnose(
         voltage_residual_v=out["voltage_residual_v"],
         torque_slow_nm=out["torque_slow_nm"],
         speed_siblings_rad_s=out["speed_siblings_rad_s"],
+        torque_band_nm=out["torque_band_nm"],
         vehicle_fit=vehicle_fit,
     )
     for name in ordered.names:

@@ -151,6 +151,12 @@ class ThresholdProfile:
     ``conditions_siblings_s`` seconds), and never by less than 1: the air the six motors share, measured on
     them, instead of a growth that only the worst flight needed (:mod:`.rules.bands`, "Grown as the siblings
     run"). 0, the default: ``excess ** conditions_growth`` alone.
+    ``torque_siblings_spread`` (m > 0, with ``conditions_siblings`` and ``equation_bands``): beyond the
+    limits the torque's band grows by no more than m times the spread of the other motors' torque residuals
+    around their median, low-passed over ``conditions_siblings_s``, in units of the torque's identified σ,
+    and never by less than 1 nor by more than the deviations' growth (:mod:`.rules.bands`, "The torque's
+    own growth"; nothing to bound without them). 0, the default: the torque's band grows as the larger of
+    the deviations' bands.
     ``equation_bands`` (n > 0, with ``noise_bands``): friction (F1.1) and a lighter propeller (F3.1),
     which move the model's torque balance alone, are judged in it, against n times its own noise, which
     identification measured (:mod:`.rules.equations`; not where the ESC reports its input current, whose
@@ -185,6 +191,7 @@ class ThresholdProfile:
     conditions_growth: float = 0.0
     conditions_siblings: float = 0.0
     conditions_siblings_s: float = 10.0
+    torque_siblings_spread: float = 0.0
     equation_bands: float = 0.0
     speed_against_siblings: float = 0.0
     steady: CompareRule = field(default_factory=StepRule)
@@ -303,6 +310,12 @@ class ThresholdProfile:
                 f"{self.conditions_siblings!r}",
                 key="conditions_siblings",
                 expected="a multiple 0..100 of the siblings' deviations in their noise (0: not used)",
+            )
+        if not 0 <= self.torque_siblings_spread <= 100:
+            raise ConfigError(
+                f"{self.torque_siblings_spread!r}",
+                key="torque_siblings_spread",
+                expected="a multiple 0..100 of the siblings' torque spread (0: not used)",
             )
         if not 0 < self.conditions_siblings_s <= 600:
             raise ConfigError(

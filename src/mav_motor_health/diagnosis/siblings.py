@@ -43,11 +43,19 @@ them in one pass (the speed deviation's, :data:`PREDICTED`, is the siblings' lin
 their median, where the profile asks for it: :mod:`.prediction`): the samples put in arrival order once,
 each motor's latest value found for every quantity and every sample together (on the live agent's hot
 path, a call of every motor's few samples).
+
+**The siblings' spread** (:attr:`VehicleStage.spreads`). Where the profile asks for it
+(``torque_siblings_spread``, :mod:`.rules.bands`), the stage also gives how far the other motors' torque
+residuals lie from their median at each sample: their median absolute deviation from it, times
+:data:`MAD_TO_SIGMA` (a standard deviation where they are normal), from the same values and with the same
+need of three as the median. It says how wide a healthy motor's torque against its siblings runs in the
+air of this instant, measured on the siblings alone (the motor's own departure never counts in it), and
+a faulty sibling among five moves a median absolute deviation as little as it moves the median.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -57,7 +65,7 @@ from numpy.typing import NDArray
 from .._arrays import part_bounds
 from .prediction import SiblingPrediction
 
-__all__ = ["STAGE_QUANTITIES", "VehicleStage", "median_of_finite"]
+__all__ = ["SPREAD", "STAGE_QUANTITIES", "STAGE_SPREADS", "VehicleStage", "median_of_finite"]
 
 #: what the vehicle stage takes across motors: the frame's value each motor gives, and the frame's field
 #: its siblings' reference goes to (rules/base.py, :class:`~.rules.base.Frame`)
@@ -67,6 +75,14 @@ STAGE_QUANTITIES = (
     ("live_z2_current", "siblings_z2_current"),
     ("speed_deviation_rad_s", "speed_siblings_rad_s"),
 )
+#: the quantities whose siblings' spread the stage also gives, where asked (:attr:`VehicleStage.spreads`):
+#: the quantity, and the frame field the spread goes to (module doc, "The siblings' spread")
+STAGE_SPREADS = (("torque_residual_nm", "torque_siblings_spread_nm"),)
+#: the key of a quantity's spread in what :meth:`VehicleStage.references` returns
+SPREAD = " spread"
+#: the median absolute deviation of normal values times this is their standard deviation
+MAD_TO_SIGMA = 1.4826
+
 #: the quantity whose reference is the siblings' linear prediction (:mod:`.prediction`), not their median
 PREDICTED = "speed_deviation_rad_s"
 #: the key of each motor's latest value of :data:`PREDICTED` before the instant of its latest one
@@ -102,6 +118,9 @@ class VehicleStage:
     alike: dict[str, float] = field(default_factory=dict)
     #: the siblings' linear prediction of :data:`PREDICTED` (:mod:`.prediction`; None: not predicted)
     prediction: SiblingPrediction | None = None
+    #: the quantities whose siblings' spread is given too (:data:`STAGE_SPREADS`), under their name and
+    #: :data:`SPREAD`
+    spreads: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for m in () if self.prediction is None else self.prediction.motors:
@@ -137,7 +156,7 @@ class VehicleStage:
             )
         rows, width = np.shape(time_s)
         names = list(values)
-        out = {name: np.full((rows, width), np.nan) for name in names}
+        out = {name: np.full((rows, width), np.nan) for name in self._given(names)}
         for m in motors:
             if m not in self.motors:
                 self.motors.append(int(m))
@@ -189,6 +208,7 @@ class VehicleStage:
         predicted = self.prediction is not None and PREDICTED in names
         medians = [q for q, name in enumerate(names) if not (predicted and name == PREDICTED)]
         reference = np.full((len(names), t.size), np.nan)
+        spread: dict[int, NDArray[np.float64]] = {}
         if medians:
             others = np.empty((len(medians), columns, t.size))
             for i, q in enumerate(medians):
@@ -204,6 +224,11 @@ class VehicleStage:
                 np.copyto(others[i], np.where(fresh, v[q][q_at], np.nan))
             need = min(MEDIAN_OF, max(1, columns - 2))  # three others, or all but one where fewer
             reference[medians] = median_of_finite(others, need, axis=1)
+            for i, q in enumerate(medians):
+                if names[q] in self.spreads:  # how far the others lie from their median ("The spread")
+                    spread[q] = MAD_TO_SIGMA * median_of_finite(
+                        np.abs(others[i] - reference[q]), need, axis=0
+                    )
         if predicted:
             q = names.index(PREDICTED)
             # each sibling's latest before the sample's own time, never of the same instant (prediction.py,
@@ -220,6 +245,8 @@ class VehicleStage:
         back[order] = k
         for q, name in enumerate(names):
             out[name][r_at, c_at] = reference[q, back[held:]]
+            if q in spread:
+                out[name + SPREAD][r_at, c_at] = spread[q][back[held:]]
             kept = self.latest.setdefault(name, {})
 
             def entry(i: int, q: int = q) -> tuple[float, float, float, bool]:
@@ -254,7 +281,7 @@ class VehicleStage:
         """:meth:`references` as consecutive calls: ``chunks[r, c]`` the first sample of row r in the
         c-th (its last column: the row's count)."""
         rows, width = np.shape(time_s)
-        out = {name: np.full((rows, width), np.nan) for name in values}
+        out = {name: np.full((rows, width), np.nan) for name in self._given(values)}
         for c in range(chunks.shape[1] - 1):
             lo, hi = chunks[:, c].tolist(), chunks[:, c + 1].tolist()
             found = self.references(
@@ -270,6 +297,11 @@ class VehicleStage:
                 for r, (l, h) in enumerate(zip(lo, hi)):
                     out[name][r, l:h] = got[r, : h - l]
         return out
+
+    def _given(self, names: Iterable[str]) -> list[str]:
+        """The keys :meth:`references` returns for the quantities ``names``: each, and its spread where
+        the stage gives one."""
+        return [key for name in names for key in (name, name + SPREAD)[: 2 if name in self.spreads else 1]]
 
     def _predicted(
         self,

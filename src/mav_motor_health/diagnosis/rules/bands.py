@@ -16,6 +16,18 @@ and never by more than ``excess ** conditions_growth``: a motor is judged agains
 not against itself (a fault's own departure never widens its band), and where fewer than three of its
 siblings (all but one on a smaller vehicle, :mod:`..siblings`) have a value the growth is the excess's
 alone. Within the conditions nothing changes.
+
+**The torque's own growth** (``torque_siblings_spread``). The torque balance against its siblings
+(:mod:`..rules.equations`) has a band of its own σ, grown beyond the conditions as the larger of the
+deviations' bands; in gusty air that was about twice what the median healthy flight's torque needed,
+and up to 25 times on some (``benchmarks/bench_noise_beyond.py``: the torque's tail there 0.44-0.47 σ),
+while with no growth it was too narrow on half the gusty flights. What the torque needs the siblings show
+directly: the vehicle stage gives how far the other motors' torque residuals lie from their median (a
+robust standard deviation, :mod:`..siblings`, "The siblings' spread"), :class:`SiblingBands` low-passes it
+per motor over its judged samples in its identified speed range (``conditions_siblings_s``, as the live
+noise), and the torque's growth beyond the conditions is at most m times that spread over the torque's
+identified σ(a, e) (m = ``torque_siblings_spread``), never less than 1 and never more than the
+deviations' growth.
 """
 
 from __future__ import annotations
@@ -163,12 +175,13 @@ class Bands(Rule):
                     frame.omega_model_rad_s, profile.range_margin, a, e, exponent
                 )
                 widen_speed, widen_current = self.as_siblings_run(frame, grown)
-            if after is not None:
-                step = np.where(np.isfinite(after), after, 1.0)
-                widen_speed, widen_current = widen_speed * step, widen_current * step
+            step = None if after is None else np.where(np.isfinite(after), after, 1.0)
             if torque is not None:
-                widest = broadcast_to(np.maximum(widen_speed, widen_current), shape)
-                torque = frame.noise_as_rows().torque_sigmas(a, e) * widest
+                sigma = frame.noise_as_rows().torque_sigmas(a, e)
+                widest = self.torque_growth(frame, np.maximum(widen_speed, widen_current), sigma)
+                torque = sigma * broadcast_to(widest if step is None else widest * step, shape)
+            if step is not None:
+                widen_speed, widen_current = widen_speed * step, widen_current * step
             if profile.range_growth > 0 and profile.judges_within_noise_conditions:
                 # beyond the identified speeds (within range_margin) each motor's own model is
                 # extrapolated (noise.py, beyond_range), as far as the motor also turns beyond them (one
@@ -205,6 +218,14 @@ class Bands(Rule):
         excess's, ``grown``, for both (:class:`SiblingBands` bounds it by the siblings')."""
         return grown, grown
 
+    def torque_growth(
+        self, frame: Frame, grown: NDArray[np.float64] | float, sigma_nm: NDArray[np.float64]
+    ) -> NDArray[np.float64] | float:
+        """The growth of the torque's band beyond the conditions (before a step's widening), given the
+        larger of the deviations' growths there, ``grown``, and the torque's identified σ(a, e) at each
+        sample: ``grown`` (:class:`SiblingBands` may bound it by the siblings' torque spread)."""
+        return grown
+
 
 @dataclass(frozen=True)
 class SiblingBands(Bands):
@@ -212,6 +233,45 @@ class SiblingBands(Bands):
     (module doc, "Grown as the siblings run"): the vehicle stage runs before it."""
 
     reads_siblings: ClassVar[bool] = True
+
+    def new_carry(self) -> Any:
+        # the low-passed siblings' torque spread: its last counted time and value
+        return (math.nan, math.nan)
+
+    def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
+        spread = frame.torque_siblings_spread_nm
+        frame.torque_spread_low_nm = None
+        if spread is None or not self.profile.torque_siblings_spread > 0:
+            return super().judge(frame, carries)
+        n = frame.shape[1]
+        counted = frame.steady & (np.arange(n)[None, :] < np.asarray(frame.counts)[:, None])
+        counted &= frame.within_identified_speeds & np.isfinite(spread)
+        carried = np.array([(math.nan, math.nan) if c is None else c for c in carries], dtype=float)
+        low, last_t, last_y = held_average(
+            frame.time_s,
+            np.where(counted, spread, 0.0),
+            counted,
+            self.profile.conditions_siblings_s,
+            carried[:, 0],
+            carried[:, 1],
+        )
+        frame.torque_spread_low_nm = low
+        super().judge(frame, carries)
+        return list(zip(last_t, last_y))
+
+    def torque_growth(
+        self, frame: Frame, grown: NDArray[np.float64] | float, sigma_nm: NDArray[np.float64]
+    ) -> NDArray[np.float64] | float:
+        """``grown`` bounded by the siblings' torque spread (module doc, "The torque's own growth") on the
+        rows judged against their siblings, where the spread is known."""
+        low = frame.torque_spread_low_nm
+        if low is None or frame.noise is None:
+            return grown
+        against = np.array([n.torque_vs_siblings is not None for n in frame.noise])[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            live = self.profile.torque_siblings_spread * low / sigma_nm
+        bounded = np.minimum(grown, np.maximum(live, 1.0))
+        return np.where(against & np.isfinite(live), bounded, grown)
 
     def as_siblings_run(
         self, frame: Frame, grown: NDArray[np.float64]

@@ -110,6 +110,11 @@ class Frame:
     #: the median of the other motors' torque residuals before each sample (the vehicle stage,
     #: :mod:`..siblings`; None: no stage ran, NaN: too few siblings there)
     torque_siblings_nm: NDArray[np.float64] | None = None
+    #: how far the other motors' torque residuals lie from that median, as a standard deviation [N·m] (the
+    #: vehicle stage, where the profile's ``torque_siblings_spread`` asks for it; None: not given)
+    torque_siblings_spread_nm: NDArray[np.float64] | None = None
+    #: that spread low-passed over each motor's judged samples (rules/bands.py, "The torque's own growth")
+    torque_spread_low_nm: NDArray[np.float64] | None = None
     #: each motor's identified σ(a, e) at each sample, speed [rad/s] and current [A] (rules/bands.py,
     #: where the live noise is measured before the bands; None: worked out by the bands)
     sigma_speed_rad_s: NDArray[np.float64] | None = None
