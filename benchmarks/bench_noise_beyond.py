@@ -87,16 +87,16 @@ def _bound(text: str) -> tuple[float, float | None]:
         raise argparse.ArgumentTypeError(f"{text!r}: expected M or M/TAU (numbers)") from None
 
 
-def _label(bound: tuple[float, float | None]) -> str:
+def _label(bound: tuple[float, float | None], name: str = "m") -> str:
     m, tau = bound
-    return f"m={m:g}" if tau is None else f"m={m:g}/{tau:g}s"
+    return f"{name}={m:g}" if tau is None else f"{name}={m:g}/{tau:g}s"
 
 
 def one_world(
     world: int,
     duration_s: float,
     siblings: tuple[tuple[float, float | None], ...] = SIBLINGS,
-    torque_spreads: tuple[float, ...] = (),
+    torque_spreads: tuple[tuple[float, float | None], ...] = (),
 ) -> list[tuple[str, str, float, dict[str, tuple[float, float]], dict[str, float]]]:
     """Per healthy flight: (world label, level, share of samples beyond the limits within the reach,
     {growth: (speed tail, current tail)}, growth ``g=...`` by the excess's exponent, ``m=...`` bounded by
@@ -151,7 +151,11 @@ def one_world(
             # over the band without growth: the growth each sample's torque band got
             torque_by = {}
             for m in torque_spreads:
-                spread = dataclasses.replace(shipped, torque_siblings_spread=m)
+                spread = dataclasses.replace(
+                    shipped,
+                    torque_siblings_spread=m[0],
+                    conditions_siblings_s=shipped.conditions_siblings_s if m[1] is None else m[1],
+                )
                 g = diagnose(table, params, spread, noise)
                 with np.errstate(divide="ignore", invalid="ignore"):
                     torque_by[m] = g["torque_band_nm"] / d["torque_band_nm"]
@@ -161,7 +165,9 @@ def one_world(
             z_torque: list[np.ndarray] = []
             torque_excess: list[np.ndarray] = []
             torque_grown: dict[tuple[float, float | None], list[np.ndarray]] = {m: [] for m in siblings}
-            torque_spread: dict[float, list[np.ndarray]] = {m: [] for m in torque_spreads}
+            torque_spread: dict[tuple[float, float | None], list[np.ndarray]] = {
+                m: [] for m in torque_spreads
+            }
             for motor in np.unique(d["motor"]):
                 rows = (d["motor"] == motor) & d["steady"] & (d["throttle"] >= shipped.min_command)
                 n = noise[int(motor)]
@@ -201,7 +207,7 @@ def one_world(
                 for m in siblings:
                     torque[_label(m)] = _tail(zt[beyond] / np.concatenate(torque_grown[m])[beyond])
                 for t in torque_spreads:
-                    torque[f"T={t:g}"] = _tail(zt[beyond] / np.concatenate(torque_spread[t])[beyond])
+                    torque[_label(t, "T")] = _tail(zt[beyond] / np.concatenate(torque_spread[t])[beyond])
             out.append(
                 (label, flight.turbulence, float(np.count_nonzero(region)) / max(total, 1), tails, torque)
             )
@@ -224,11 +230,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument(
         "--torque-spread",
-        type=float,
+        type=_bound,
         nargs="*",
         default=[],
-        help="torque_siblings_spread multipliers to evaluate (the torque's band grown by its siblings' spread, "
-        "columns T=...; default: none)",
+        help="torque_siblings_spread multipliers to evaluate, each T or T/TAU (the torque's band grown by its "
+        "siblings' spread, columns T=...; TAU: conditions_siblings_s, the deviations' too; default: none)",
     )
     args = parser.parse_args(argv)
     started = time.monotonic()
@@ -264,7 +270,7 @@ def main(argv: list[str] | None = None) -> int:
             f"median {statistics.median(worst):.2f}, worst {max(worst):.2f}; above 1 on {sum(w > 1 for w in worst)}"
         )
     torque_columns = ["within", "beyond"] + [_label(m) for m in siblings]
-    torque_columns += [f"T={t:g}" for t in args.torque_spread]
+    torque_columns += [_label(t, "T") for t in args.torque_spread]
     print(
         "\nthe torque against its siblings in its own sigma(a, e) (rules/equations.py), tail of |z|: within the"
         "\nlimits; beyond them (up to the reach) with no growth; beyond them grown as the deviations' bands (m=...)"
