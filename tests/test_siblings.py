@@ -187,6 +187,70 @@ def test_every_quantity_in_one_pass_gives_what_each_alone_gives() -> None:
         np.testing.assert_array_equal(in_pieces(VehicleStage(list(motors)), (name,))[name], alone[name])
 
 
+def test_quantities_lost_at_the_same_samples_give_what_each_alone_gives() -> None:
+    """Quantities lost at the same samples (the squared deviations of speed and current, low-passed
+    together) share the stage's search for each motor's latest value and which siblings are recent
+    enough, and the values they carry to the next call share a place of its stream (siblings.py, "One
+    stream for the quantities"): each one's references, whole and in pieces, with a quantity lost
+    elsewhere beside them, are those of a stage that takes it alone."""
+    rng = np.random.default_rng(29)
+    motors = [1, 2, 3, 4, 5, 6]
+    n = 300
+    times = np.array([np.sort(rng.uniform(0, 15, n)) for _ in motors])
+    lost = rng.random(times.shape) < 0.1
+    names = ("torque_residual_nm", "live_z2_speed", "live_z2_current")
+    values = {}
+    for q, name in enumerate(names):
+        v = np.cos((0.2 + 0.1 * q) * times) + 0.05 * rng.standard_normal(times.shape)
+        v[lost if q > 0 else rng.random(v.shape) < 0.05] = np.nan
+        values[name] = v
+    speeds = 400.0 + 60.0 * rng.standard_normal(times.shape)
+    in_range = rng.random(times.shape) < 0.8
+    cuts = [*np.sort(rng.uniform(0, 15, 25)), np.inf]
+
+    def stage() -> VehicleStage:
+        return VehicleStage(list(motors), alike={"torque_residual_nm": 0.1}, spreads=("torque_residual_nm",))
+
+    def rows(x: np.ndarray, done: list[int], counts: list[int], fill: float | bool = np.nan) -> np.ndarray:
+        """Samples ``done[r]`` on of each row r, ``counts[r]`` of them, as rows padded with ``fill``."""
+        out = np.full((6, max(max(counts), 1)), fill, dtype=x.dtype)
+        for r, (d, k) in enumerate(zip(done, counts)):
+            out[r, :k] = x[r, d : d + k]
+        return out
+
+    def in_pieces(given: tuple[str, ...]) -> dict[str, np.ndarray]:
+        vehicle = stage()
+        got: dict[str, np.ndarray] = {}
+        done = [0] * 6
+        for cut in cuts:
+            counts = [int(np.searchsorted(t, cut, side="right")) - d for t, d in zip(times, done)]
+            found = vehicle.references(
+                motors,
+                rows(times, done, counts),
+                {name: rows(values[name], done, counts) for name in given},
+                counts,
+                rows(np.full(times.shape, 0.2), done, counts),
+                rows(speeds, done, counts),
+                rows(in_range, done, counts, False),
+            )
+            for key, x in found.items():
+                into = got.setdefault(key, np.full(times.shape, np.nan))
+                for r, (d, k) in enumerate(zip(done, counts)):
+                    into[r, d : d + k] = x[r, :k]
+            done = [d + k for d, k in zip(done, counts)]
+        return got
+
+    age = np.full(times.shape, 0.2)
+    together = stage().references(motors, times, values, [n] * 6, age, speeds, in_range)
+    pieces = in_pieces(names)
+    for name in names:
+        alone = stage().references(motors, times, {name: values[name]}, [n] * 6, age, speeds, in_range)
+        assert np.isfinite(alone[name]).mean() > 0.3
+        for key in alone:
+            np.testing.assert_array_equal(together[key], alone[key], err_msg=key)
+            np.testing.assert_array_equal(pieces[key], alone[key], err_msg=key)
+
+
 def test_three_siblings_make_a_reference_on_a_hexacopter() -> None:
     """A median of three holds against one sibling that departs: on a hexacopter two silent siblings
     leave a reference, three do not; a quadcopter still needs all but one (two)."""

@@ -44,6 +44,20 @@ their median, where the profile asks for it: :mod:`.prediction`): the samples pu
 each motor's latest value found for every quantity and every sample together (on the live agent's hot
 path, a call of every motor's few samples).
 
+**One stream for the quantities.** Each motor's latest value of a quantity at each place of the stream is
+found by a running maximum over the places where that motor gave it (a finite value): one pass over
+columns × stream per quantity, about a tenth of a whole log's stage. Quantities lost at the same places
+have the same latest places, and the stage takes two that are (the squared deviations of speed and
+current, low-passed together in :mod:`.rules.bands`): the running maximum is worked out once for each
+distinct pattern of lost places, and the quantities of one pattern share which siblings' values are
+recent enough. (The torque and the speed deviation are lost at the same samples too, but the speed
+deviation also carries each motor's latest value before the instant of its latest, :data:`PREDICTED`:
+their patterns differ at those places.) For the patterns to be the same in the stream too, the values
+carried from the call before that are of one sample (the same motor, time, model speed and range, bit for
+bit) are one place of the stream, a value of each of those quantities, instead of one place per quantity:
+every quantity's latest values, their times and their order are those of one place per quantity (issue
+18; the same references, byte for byte).
+
 **The siblings' spread** (:attr:`VehicleStage.spreads`). Where the profile asks for it
 (``torque_siblings_spread``, :mod:`.rules.bands`), the stage also gives how far the other motors' torque
 residuals lie from their median at each sample: their median absolute deviation from it, times
@@ -55,6 +69,7 @@ a faulty sibling among five moves a median absolute deviation as little as it mo
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -165,44 +180,44 @@ class VehicleStage:
         column = {m: j for j, m in enumerate(self.motors)}
         valid = np.arange(width)[None, :] < np.asarray(counts)[:, None]
         r_at, c_at = np.nonzero(valid)
-        # the stream: every quantity's carried latest values first (each one a value of its own quantity
-        # only, NaN for the others: it never counts as another's latest), then the call's samples
-        carried = [
-            (q, m, *self.latest[key][m])
-            for q, name in enumerate(names)
-            for key in ((name, name + _BEFORE) if name == PREDICTED else (name,))
-            for m in self.motors
-            if m in self.latest.get(key, {})
-        ]
+        # the stream: the carried latest values first (each one a value of its own quantities only, NaN
+        # for the others: it never counts as another's latest), then the call's samples
+        carried = self._carried(names)
         held = len(carried)
-        t = np.concatenate([[c[2] for c in carried], time_s[r_at, c_at]])
+        t = np.concatenate([[c[1] for c in carried], time_s[r_at, c_at]])
         v = np.full((len(names), t.size), np.nan)
-        for i, (q, _, _, value, _, _) in enumerate(carried):
-            v[q, i] = value
+        for i, (_, _, _, _, of) in enumerate(carried):
+            for q, value in of:
+                v[q, i] = value
         judging_alike = speed_rad_s is not None and in_range is not None
         own_speed, own_range = np.full(r_at.size, np.nan), np.ones(r_at.size, dtype=bool)
         if speed_rad_s is not None and in_range is not None:
             own_speed, own_range = speed_rad_s[r_at, c_at], in_range[r_at, c_at]
-        speeds = np.concatenate([[c[4] for c in carried], own_speed])
-        trusted = np.concatenate([[c[5] for c in carried], own_range]).astype(bool)
+        speeds = np.concatenate([[c[2] for c in carried], own_speed])
+        trusted = np.concatenate([[c[3] for c in carried], own_range]).astype(bool)
         for q, name in enumerate(names):
             v[q, held:] = values[name][r_at, c_at]
         who = np.concatenate(
-            [[column[c[1]] for c in carried], np.asarray([column[int(m)] for m in motors])[r_at]]
+            [[column[c[0]] for c in carried], np.asarray([column[int(m)] for m in motors])[r_at]]
         ).astype(np.intp)
         age_limit = np.concatenate([np.full(held, -np.inf), max_age_s[r_at, c_at]])
         order = np.lexsort((np.asarray(self.motors)[who], t))  # arrival: time, then motor number
         t, v, who, age_limit = t[order], v[:, order], who[order], age_limit[order]
         speeds, trusted = speeds[order], trusted[order]
-        # each motor's (column's) latest finite value at or before each place in the stream, every
-        # quantity at once: (quantities, columns, stream), each column's stream contiguous (issue 18)
+        # each motor's (column's) latest finite value at or before each place in the stream, for every
+        # quantity at once: (columns, stream) per quantity, each column's stream contiguous (issue 18);
+        # quantities lost at the same places share it ("One stream for the quantities")
         k = np.arange(t.size)
         columns = len(self.motors)
         mine = who[None, :] == np.arange(columns)[:, None]
-        last = np.where(mine[None] & np.isfinite(v)[:, None, :], k, -1)
-        np.maximum.accumulate(last, axis=2, out=last)
-        have = last >= 0
-        at = last  # (−1 where none: an index all the same, every value it picks masked by ``have``)
+        not_mine = ~mine
+        kind, masks = _alike_rows(np.isfinite(v))
+        last_of = np.where(mine[None] & masks[:, None, :], k, -1)
+        np.maximum.accumulate(last_of, axis=2, out=last_of)
+        have_of = last_of >= 0
+        # (−1 where none: an index all the same, every value it picks masked by ``have``)
+        last = [last_of[kind[q]] for q in range(len(names))]
+        have = [have_of[kind[q]] for q in range(len(names))]
         # the quantities whose reference is the siblings' median (the predicted one's is the prediction,
         # worked out below from each sibling's latest before the sample's instant)
         predicted = self.prediction is not None and PREDICTED in names
@@ -211,16 +226,19 @@ class VehicleStage:
         spread: dict[int, NDArray[np.float64]] = {}
         if medians:
             others = np.empty((len(medians), columns, t.size))
+            recent: dict[int, NDArray[np.bool_]] = {}  # each kind's siblings recent enough
             for i, q in enumerate(medians):
-                q_at = at[q]
-                fresh = have[q] & (t - t[q_at] <= age_limit) & ~mine
+                q_at = last[q]
+                fresh = recent.get(kind[q])
+                if fresh is None:
+                    fresh = recent[kind[q]] = have[q] & (t - t[q_at] <= age_limit) & not_mine
                 share = self.alike.get(names[q])
                 if share is not None and judging_alike:
                     # a sibling beyond its identified speeds carries the model's error there: a reference
                     # only at this motor's own speed (module doc, "Beyond the identified speeds")
                     with np.errstate(invalid="ignore"):
                         near = np.abs(speeds[q_at] - speeds) <= share * np.abs(speeds)
-                    fresh &= trusted[q_at] | near
+                    fresh = fresh & (trusted[q_at] | near)
                 np.copyto(others[i], np.where(fresh, v[q][q_at], np.nan))
             need = min(MEDIAN_OF, max(1, columns - 2))  # three others, or all but one where fewer
             reference[medians] = median_of_finite(others, need, axis=1)
@@ -236,7 +254,7 @@ class VehicleStage:
             first = np.searchsorted(t, t, side="left")
             before = np.where(first > 0, last[q][:, first - 1], -1)
             at_before = before  # (−1 where none, masked as ``at`` is)
-            fresh_before = (before >= 0) & (t - t[at_before] <= age_limit) & ~mine
+            fresh_before = (before >= 0) & (t - t[at_before] <= age_limit) & not_mine
             if judging_alike:
                 # a sibling beyond its identified speeds: not in the pattern Σ was measured in
                 fresh_before &= trusted[at_before]
@@ -252,20 +270,39 @@ class VehicleStage:
             def entry(i: int, q: int = q) -> tuple[float, float, float, bool]:
                 return float(t[i]), float(v[q, i]), float(speeds[i]), bool(trusted[i])
 
-            for j in np.flatnonzero(have[q, :, -1]).tolist():
-                j_at = int(at[q, j, -1])
+            for j in np.flatnonzero(have[q][:, -1]).tolist():
+                j_at = int(last[q][j, -1])
                 kept[self.motors[j]] = entry(j_at)
                 if name == PREDICTED:
                     # and its latest before that instant: what a sibling of that instant still to come
                     # in the next call is predicted from ("Before, never of the same instant")
                     start = int(np.searchsorted(t, t[j_at], side="left"))
-                    earlier = int(last[q, j, start - 1]) if start > 0 else -1
+                    earlier = int(last[q][j, start - 1]) if start > 0 else -1
                     into = self.latest.setdefault(name + _BEFORE, {})
                     if earlier >= 0:
                         into[self.motors[j]] = entry(earlier)
                     else:
                         into.pop(self.motors[j], None)
         return out
+
+    def _carried(self, names: Sequence[str]) -> list[tuple[int, float, float, bool, list[tuple[int, float]]]]:
+        """The latest values carried for the quantities ``names`` as places of the stream: (motor, time,
+        model speed, in range, [(quantity's place in ``names``, value), ...]). Values of one sample (the
+        same motor, time, speed and range, bit for bit) share a place ("One stream for the
+        quantities"); the places in the order the quantities and motors come."""
+        places: dict[tuple[int, bytes, bool], tuple[int, float, float, bool, list[tuple[int, float]]]] = {}
+        for q, name in enumerate(names):
+            for key in (name, name + _BEFORE) if name == PREDICTED else (name,):
+                latest = self.latest.get(key, {})
+                for m in self.motors:
+                    if m not in latest:
+                        continue
+                    time_s, value, speed, in_range = latest[m]
+                    place = (m, struct.pack("<dd", time_s, speed), in_range)
+                    if place not in places:
+                        places[place] = (m, time_s, speed, in_range, [])
+                    places[place][4].append((q, value))
+        return list(places.values())
 
     def _references_in_chunks(
         self,
@@ -346,6 +383,17 @@ def _chunks(time_s: NDArray[np.float64], counts: Sequence[int]) -> NDArray[np.in
         return None
     times = np.asarray(time_s, dtype=float)
     return part_bounds([times[r, :k] for r, k in enumerate(counts)], STREAM_CHUNK)
+
+
+def _alike_rows(rows: NDArray[np.bool_]) -> tuple[list[int], NDArray[np.bool_]]:
+    """Each row's kind (the first row equal to it, counted among the distinct ones) and the distinct
+    rows, in order."""
+    kinds: list[int] = []
+    seen: dict[bytes, int] = {}
+    for row in rows:
+        kinds.append(seen.setdefault(row.tobytes(), len(seen)))
+    firsts = [kinds.index(u) for u in range(len(seen))]
+    return kinds, rows[firsts]
 
 
 def median_of_finite(values: NDArray[np.float64], need: int, axis: int = 1) -> NDArray[np.float64]:
