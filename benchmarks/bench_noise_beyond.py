@@ -49,6 +49,7 @@ import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -92,6 +93,16 @@ def _label(bound: tuple[float, float | None], name: str = "m") -> str:
     return f"{name}={m:g}" if tau is None else f"{name}={m:g}/{tau:g}s"
 
 
+def _diagnosed(
+    table: Any, params: Any, noise: Any, profile: Any, tau_s: float | None, **changes: float
+) -> Any:
+    """``table`` diagnosed with ``profile`` changed so (and ``conditions_siblings_s`` = ``tau_s`` where
+    given)."""
+    if tau_s is not None:
+        changes["conditions_siblings_s"] = tau_s
+    return diagnose(table, params, dataclasses.replace(profile, **changes), noise)
+
+
 def one_world(
     world: int,
     duration_s: float,
@@ -133,15 +144,11 @@ def one_world(
             table = vehicle.calibrate(sources.read(flight_log))
             params = vehicle.models(range(1, max(motor_numbers(table["motor"])) + 1))
             d = diagnose(table, params, everywhere, noise)
+
             # the bands with the siblings' bound, over the bands without growth: the growth each sample got
             grown_by = {}
             for m in siblings:
-                bounded = dataclasses.replace(
-                    shipped,
-                    conditions_siblings=m[0],
-                    conditions_siblings_s=shipped.conditions_siblings_s if m[1] is None else m[1],
-                )
-                g = diagnose(table, params, bounded, noise)
+                g = _diagnosed(table, params, noise, shipped, m[1], conditions_siblings=m[0])
                 with np.errstate(divide="ignore", invalid="ignore"):
                     grown_by[m] = (
                         g["speed_band_rad_s"] / d["speed_band_rad_s"],
@@ -151,12 +158,7 @@ def one_world(
             # over the band without growth: the growth each sample's torque band got
             torque_by = {}
             for m in torque_spreads:
-                spread = dataclasses.replace(
-                    shipped,
-                    torque_siblings_spread=m[0],
-                    conditions_siblings_s=shipped.conditions_siblings_s if m[1] is None else m[1],
-                )
-                g = diagnose(table, params, spread, noise)
+                g = _diagnosed(table, params, noise, shipped, m[1], torque_siblings_spread=m[0])
                 with np.errstate(divide="ignore", invalid="ignore"):
                     torque_by[m] = g["torque_band_nm"] / d["torque_band_nm"]
             z_speed, z_current, excess, total = [], [], [], 0

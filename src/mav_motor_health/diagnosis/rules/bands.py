@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -61,6 +62,19 @@ def _noise_of(frame: Frame, profile: ThresholdProfile) -> list[BandNoise]:
     return list(noise)
 
 
+def _live_samples(frame: Frame) -> NDArray[np.bool_]:
+    """The samples a live low-pass counts: each row's own (not its padding), judged, and in its identified
+    speed range (module doc: the deviations' live noise and the torque's spread alike)."""
+    counted = frame.steady & (np.arange(frame.shape[1])[None, :] < np.asarray(frame.counts)[:, None])
+    return np.asarray(counted & frame.within_identified_speeds)
+
+
+def _against_siblings(noise: Sequence[BandNoise]) -> NDArray[np.bool_]:
+    """Whether each row's motor is judged in the torque against its siblings' (its noise was measured
+    so), a column (rows × 1)."""
+    return np.array([n.torque_vs_siblings is not None for n in noise])[:, None]
+
+
 def _sigmas(frame: Frame) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Each row's identified σ(a, e) of the speed and the current at its samples."""
     a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
@@ -84,9 +98,8 @@ class LiveNoise(Rule):
         _noise_of(frame, profile)  # each motor has its noise (else a clear error)
         speed, current = _sigmas(frame)
         frame.sigma_speed_rad_s, frame.sigma_current_a = speed, current
-        rows, n = frame.shape
-        counted = frame.steady & (np.arange(n)[None, :] < np.asarray(frame.counts)[:, None])
-        counted &= frame.within_identified_speeds
+        rows, _ = frame.shape
+        counted = _live_samples(frame)
         with np.errstate(divide="ignore", invalid="ignore"):
             z2 = np.concatenate(
                 [
@@ -196,8 +209,7 @@ class Bands(Rule):
                 )
                 widen_speed, widen_current = widen_speed * beyond, widen_current * beyond
                 if torque is not None:
-                    own = np.array([n.torque_vs_siblings is None for n in noise])[:, None]
-                    torque = torque * np.where(own, beyond, 1.0)
+                    torque = torque * np.where(_against_siblings(noise), 1.0, beyond)
             speed *= widen_speed
             current *= widen_current
             frame.speed_band_rad_s = profile.noise_bands * speed
@@ -243,9 +255,7 @@ class SiblingBands(Bands):
         frame.torque_spread_low_nm = None
         if spread is None or not self.profile.torque_siblings_spread > 0:
             return super().judge(frame, carries)
-        n = frame.shape[1]
-        counted = frame.steady & (np.arange(n)[None, :] < np.asarray(frame.counts)[:, None])
-        counted &= frame.within_identified_speeds & np.isfinite(spread)
+        counted = _live_samples(frame) & np.isfinite(spread)
         carried = np.array([(math.nan, math.nan) if c is None else c for c in carries], dtype=float)
         low, last_t, last_y = held_average(
             frame.time_s,
@@ -267,7 +277,7 @@ class SiblingBands(Bands):
         low = frame.torque_spread_low_nm
         if low is None or frame.noise is None:
             return grown
-        against = np.array([n.torque_vs_siblings is not None for n in frame.noise])[:, None]
+        against = _against_siblings(frame.noise)
         with np.errstate(divide="ignore", invalid="ignore"):
             live = self.profile.torque_siblings_spread * low / sigma_nm
         bounded = np.minimum(grown, np.maximum(live, 1.0))
