@@ -96,6 +96,8 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ("[profile]\nrange_growth = 1\n", "profile.range_growth"),  # without range_margin: nothing to grow in
         ("[profile]\ntorque_siblings_spread = -1\n", "profile.torque_siblings_spread"),
         ("[profile]\ntorque_siblings_spread = 101\n", "profile.torque_siblings_spread"),
+        ("[profile]\nslow_siblings = -0.5\n", "profile.slow_siblings"),
+        ("[profile]\nslow_siblings = 101\n", "profile.slow_siblings"),
     ],
 )
 def test_bad_profiles(tmp_path: Path, text: str, key: str) -> None:
@@ -152,3 +154,6 @@ def test_profile_dump_round_trip(tmp_path: Path) -> None:
     # the current widened apart above and below the model (a fourth column)
     sided = replace(tuned, activity_band=((0.1, 0.0, 0.0, 0.0), (0.8, 30.5, 0.2, 0.3), (2.5, 60.0, 0.9, 1.4)))
     assert load_profile(write(tmp_path, dump_profile(sided))) == sided
+    # the shipped vehicle profile, with the slow look's bands bounded by its siblings
+    vehicle = replace(load_profile("flight_vehicle"), slow_siblings=1.5)
+    assert load_profile(write(tmp_path, dump_profile(vehicle))) == vehicle

@@ -204,13 +204,14 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
 
 
 @pytest.mark.parametrize(
-    "limited, step_sigmas, against, torque_spread",
+    "limited, step_sigmas, against, torque_spread, slow_siblings",
     [
-        (False, 0.0, False, 0.0),
-        (True, 0.0, False, 0.0),
-        (True, 1.0, False, 0.0),
-        (True, 0.0, True, 0.0),
-        (True, 0.0, False, 1.0),
+        (False, 0.0, False, 0.0, 0.0),
+        (True, 0.0, False, 0.0, 0.0),
+        (True, 1.0, False, 0.0, 0.0),
+        (True, 0.0, True, 0.0, 0.0),
+        (True, 0.0, False, 1.0, 0.0),
+        (True, 0.0, False, 0.0, 0.03),
     ],
     ids=[
         "within the conditions",
@@ -218,10 +219,11 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
         "a step in the motor's own noise",
         "the speed against the siblings' prediction",
         "the torque's band grown by its siblings' spread",
+        "the slow look's bands as its siblings run",
     ],
 )
 def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
-    paper_motor, limited, step_sigmas, against, torque_spread
+    paper_motor, limited, step_sigmas, against, torque_spread, slow_siblings
 ) -> None:
     """With the torque judged against the siblings (diagnosis/siblings.py), a motor's results depend on
     the others': batches cut in the order samples arrive (time, then motor) through
@@ -235,7 +237,11 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
     judged less the siblings' linear prediction (diagnosis/prediction.py), from a covariance whose
     motors move together, so that the prediction takes part of every motor's deviation off.
     ``torque_spread``: the torque's band grown beyond the conditions by its siblings' spread (the stage's,
-    low-passed by the bands with a carry of their own: rules/bands.py, "The torque's own growth")."""
+    low-passed by the bands with a carry of their own: rules/bands.py, "The torque's own growth").
+    ``slow_siblings``: the slow look's bands at most that multiple of the siblings' slow averages' root
+    mean square (each motor's low-passed by the live noise with a carry of its own, the median the
+    stage's: rules/tree.py, "The slow look as its siblings run"), small enough here that it names
+    samples the motor's own slow bands leave NORMAL."""
     motors = _window(lost=False)
     from mav_motor_health.diagnosis.pipeline import diagnose
     from mav_motor_health.telemetry.table import TelemetryTable
@@ -250,6 +256,17 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
     noise = stage_noise(motors)
     if torque_spread:
         profile = dataclasses.replace(profile, torque_siblings_spread=torque_spread)
+    if slow_siblings:
+        profile = dataclasses.replace(profile, slow_siblings=slow_siblings)
+        # the slow look's own noise, as wide as the fast deviations' (none measured: no slow look)
+        noise = {
+            m: dataclasses.replace(
+                n,
+                slow_speed=EquationNoise(n.speed_rad_s, n.speed_rad_s_per_v),
+                slow_current=EquationNoise(n.current_a, n.current_a_per_v),
+            )
+            for m, n in noise.items()
+        }
     if against:
         profile = dataclasses.replace(profile, speed_against_siblings=1.0)
         # every pair correlated 0.5, each motor its own variance
@@ -305,6 +322,9 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
         alone = diagnose(table, paper_motor, base, noise)
         moved = whole["omega_judged_rad_s"] != alone["omega_judged_rad_s"]
         assert moved.mean() > 0.3 and np.isnan(alone["speed_siblings_rad_s"]).all()
+    if slow_siblings:  # the siblings' slow bands are narrower somewhere, and name what the own ones do not
+        own = diagnose(table, paper_motor, dataclasses.replace(profile, slow_siblings=0.0), noise)
+        assert ((whole["state"] != 0) & (own["state"] == 0)).sum() > 10
     if step_sigmas:  # the model's jumps hold samples back that the volts' steps do not
         plain = diagnose(table, paper_motor, base, noise)
         held = plain["steady"] & ~whole["steady"]

@@ -534,6 +534,14 @@ class NoiseRows(_ConditionsMath):
             self._slow_z(delta_current_a, 4, a, e, clamped, growth[1]),
         )
 
+    def slow_quiet(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Each row's slow offsets and quiet slow σ (σ₀), speed [rad/s] then current [A], as columns (NaN:
+        not measured)."""
+        t = self.slow_table
+        return t[:, 3:4], t[:, 7:8], t[:, 0:1], t[:, 4:5]
+
     def slow_torque_z(
         self,
         torque_nm: NDArray[np.float64],

@@ -267,6 +267,8 @@ def vehicle_stage(
             quantities.append("torque_residual_nm")
         if profile.grows_as_siblings:
             quantities += ["live_z2_speed", "live_z2_current"]
+        if profile.slow_as_siblings:
+            quantities += ["slow_ms_speed", "slow_ms_current"]
         if profile.speed_against_siblings > 0:
             prediction = SiblingPrediction.of(
                 {m: n.speed_covariance for m, n in noise.items()},

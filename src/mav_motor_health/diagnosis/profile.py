@@ -157,6 +157,13 @@ class ThresholdProfile:
     and never by less than 1 nor by more than the deviations' growth (:mod:`.rules.bands`, "The torque's
     own growth"; nothing to bound without them). 0, the default: the torque's band grows as the larger of
     the deviations' bands.
+    ``slow_siblings`` (m > 0, with ``conditions_siblings`` and ``slow_band_fraction``): the slow look's
+    bands are at most as wide as m times how far the other motors' slow averages run from their models
+    right now (the square root of the median over the siblings of each one's squared slow deviation,
+    low-passed over ``conditions_siblings_s``, in the deviation's own unit; never below the motor's own
+    quiet slow σ), times the fast bands' ``noise_bands`` and ``slow_band_fraction`` (:mod:`.rules.tree`,
+    "The slow look as its siblings run"; nothing to bound without them). 0, the default: the slow look's
+    bands from its own measured noise alone.
     ``equation_bands`` (n > 0, with ``noise_bands``): friction (F1.1) and a lighter propeller (F3.1),
     which move the model's torque balance alone, are judged in it, against n times its own noise, which
     identification measured (:mod:`.rules.equations`; not where the ESC reports its input current, whose
@@ -192,6 +199,7 @@ class ThresholdProfile:
     conditions_siblings: float = 0.0
     conditions_siblings_s: float = 10.0
     torque_siblings_spread: float = 0.0
+    slow_siblings: float = 0.0
     equation_bands: float = 0.0
     speed_against_siblings: float = 0.0
     steady: CompareRule = field(default_factory=StepRule)
@@ -317,6 +325,12 @@ class ThresholdProfile:
                 key="torque_siblings_spread",
                 expected="a multiple 0..100 of the siblings' torque spread (0: not used)",
             )
+        if not 0 <= self.slow_siblings <= 100:
+            raise ConfigError(
+                f"{self.slow_siblings!r}",
+                key="slow_siblings",
+                expected="a multiple 0..100 of the siblings' slow deviations (0: not used)",
+            )
         if not 0 < self.conditions_siblings_s <= 600:
             raise ConfigError(
                 f"{self.conditions_siblings_s!r}",
@@ -427,6 +441,12 @@ class ThresholdProfile:
         was measured at (``range_margin`` > 0 with bands in noise units): :class:`~.rules.judged.Judged`
         sets the rest aside, and :class:`~.rules.pairing.PairingLimits` then leaves the pairing to it."""
         return self.noise_bands > 0 and self.range_margin > 0
+
+    @property
+    def slow_as_siblings(self) -> bool:
+        """Whether the slow look's bands are bounded by how its siblings' slow averages run
+        (``slow_siblings``, :mod:`.rules.tree`): the live noise measures them before the vehicle stage."""
+        return self.slow_siblings > 0 and self.slow_band_fraction > 0 and self.grows_as_siblings
 
     @property
     def grows_as_siblings(self) -> bool:

@@ -89,6 +89,8 @@ STAGE_QUANTITIES = (
     ("live_z2_speed", "siblings_z2_speed"),
     ("live_z2_current", "siblings_z2_current"),
     ("speed_deviation_rad_s", "speed_siblings_rad_s"),
+    ("slow_ms_speed", "siblings_slow_ms_speed"),
+    ("slow_ms_current", "siblings_slow_ms_current"),
 )
 #: the quantities whose siblings' spread the stage also gives, where asked (:attr:`VehicleStage.spreads`):
 #: the quantity, and the frame field the spread goes to (module doc, "The siblings' spread")

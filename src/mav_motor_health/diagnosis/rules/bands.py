@@ -91,11 +91,47 @@ class LiveNoise(Rule):
     profile: ThresholdProfile
 
     def new_carry(self) -> Any:
-        return (math.nan, math.nan, math.nan, math.nan)
+        # (time, value) of the speed's and the current's low-pass, then of the slow averages' (slow_siblings)
+        return (math.nan,) * (8 if self.profile.slow_as_siblings else 4)
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
         profile = self.profile
         _noise_of(frame, profile)  # each motor has its noise (else a clear error)
+        if profile.slow_as_siblings:
+            slow_carries = self._slow_squares(frame, [c[4:] for c in carries])
+            fast = self._fast(frame, [c[:4] for c in carries])
+            return [f + s for f, s in zip(fast, slow_carries)]
+        return self._fast(frame, carries)
+
+    def _slow_squares(self, frame: Frame, carries: list[Any]) -> list[tuple[float, ...]]:
+        """``slow_ms_speed`` and ``slow_ms_current``: each motor's slow averages' squared deviation from its
+        slow offset, low-passed as the fast ones' z² over its counted samples where the slow look is ready
+        (rules/tree.py, "The slow look as its siblings run"); each row's carry advanced."""
+        rows, _ = frame.shape
+        slow = frame.slow
+        if slow is None:
+            frame.slow_ms_speed = frame.slow_ms_current = None
+            return [tuple(c) for c in carries]
+        offset_speed, offset_current, _, _ = frame.noise_as_rows().slow_quiet()
+        x2 = np.concatenate(
+            [(slow.delta_omega_rad_s - offset_speed) ** 2, (slow.delta_current_a - offset_current) ** 2]
+        )
+        counted = np.concatenate([_live_samples(frame) & slow.ready] * 2) & np.isfinite(x2)
+        carried = np.array(carries, dtype=float).reshape(rows, 2, 2)  # (speed, current) × (time, value)
+        low, last_t, last_y = held_average(
+            np.concatenate([frame.time_s, frame.time_s]),
+            np.where(counted, x2, 0.0),
+            counted,
+            self.profile.conditions_siblings_s,
+            np.concatenate([carried[:, 0, 0], carried[:, 1, 0]]),
+            np.concatenate([carried[:, 0, 1], carried[:, 1, 1]]),
+        )
+        frame.slow_ms_speed, frame.slow_ms_current = low[:rows], low[rows:]
+        return [(last_t[r], last_y[r], last_t[rows + r], last_y[rows + r]) for r in range(rows)]
+
+    def _fast(self, frame: Frame, carries: list[Any]) -> list[Any]:
+        """The fast deviations' σ and low-passed z² (class doc); each row's carry advanced."""
+        profile = self.profile
         speed, current = _sigmas(frame)
         frame.sigma_speed_rad_s, frame.sigma_current_a = speed, current
         rows, _ = frame.shape

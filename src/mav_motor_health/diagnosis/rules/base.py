@@ -126,6 +126,13 @@ class Frame:
     live_z2_current: NDArray[np.float64] | None = None
     siblings_z2_speed: NDArray[np.float64] | None = None
     siblings_z2_current: NDArray[np.float64] | None = None
+    #: each motor's slow averages' squared deviation from its slow offset, low-passed, speed [(rad/s)²] and
+    #: current [A²] (the live noise, rules/bands.py, where the profile's ``slow_siblings`` asks for it; None:
+    #: not measured), and the median of the other motors' latest (the vehicle stage; NaN: too few there)
+    slow_ms_speed: NDArray[np.float64] | None = None
+    slow_ms_current: NDArray[np.float64] | None = None
+    siblings_slow_ms_speed: NDArray[np.float64] | None = None
+    siblings_slow_ms_current: NDArray[np.float64] | None = None
     #: the siblings' linear prediction of each sample's speed deviation [rad/s] (the vehicle stage,
     #: :mod:`..prediction`; None: not predicted, NaN: a sibling's value missing there); where the profile's
     #: ``speed_against_siblings`` judges against it, ``omega_judged_rad_s`` has it taken off (:mod:`.against`)

@@ -17,6 +17,26 @@ flight's so far: the geometric mean of the motor's measured current on its judge
 current is not the motor's typical one and would set the split too low; samples above those speeds can
 only raise this flight's figure, which the lower of the two then leaves aside. With a motor-side current
 the two agree and the split moves little.
+
+**The slow look as its siblings run** (``slow_siblings``). The slow look's σ is measured on the
+identification flight and extrapolated in the input activity and the pairing error beyond it; where a
+vehicle identified in calm air meets moderate air with ESCs reporting at 10 Hz, that extrapolation ran
+two to three times wider than the healthy slow averages did, and the reach grew with the fast bands on
+top (held-out world 1008: a slow band of about 90 rad/s around healthy slow deviations of about ±7 rad/s,
+10th to 90th percentile, and an open transistor's 35 rad/s read NORMAL). How far healthy slow averages run
+from their models in the air of the moment, the five siblings show: each motor's squared slow deviation
+from its slow offset is low-passed over ``conditions_siblings_s`` (:class:`~.bands.LiveNoise`), the
+vehicle stage takes the median of the other motors' latest (:mod:`..siblings`), and the slow look's band
+is at most ``noise_bands · slow_band_fraction · m`` times its square root (m = ``slow_siblings``), never
+below as many of the motor's own quiet slow σ: the narrower of the two bands. A motor's own departure
+never narrows or widens its own band (its own mean square is never its reference), and a single faulty
+sibling moves a median of five little. Unlike the siblings' spread at an instant, which five motors
+parting in a yaw turn make small, each sibling's own mean square over seconds holds its manoeuvres'
+departures (``benchmarks/bench_slow_siblings.py``, docs/flight.md). Only where the motor lies in its
+identified speeds (by its model speed or the speed it turns): the motors that take a failed one's share
+run beyond them together. Not in the shipped profile: on a vehicle whose motors seldom reach their
+identified speeds, a sibling counted for a moment holds the mean square of a few quiet samples and
+narrows the others' bands (docs/flight.md, "The slow look as its siblings run").
 """
 
 from __future__ import annotations
@@ -34,7 +54,7 @@ from ..noise import MIN_MOTOR_SAMPLES
 from ..stall import stop_speeds
 from ..states import Code
 from ..tree import agreeing_departures, classify_depth
-from .base import Frame, Rule
+from .base import Frame, Rule, SlowAverages
 
 if TYPE_CHECKING:
     from ..profile import ThresholdProfile
@@ -183,12 +203,17 @@ class SlowLook(Rule):
                 band_current = (
                     np.where(z_current < 0, frame.current_band_below_a, frame.current_band_a) / sigma_current
                 )
+            # each departure as a share of its band: the narrower of its own and its siblings' (module doc)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                share_speed = z_speed / (self.fraction * band_speed)
+                share_current = z_current / (self.fraction * band_current)
+            narrowed = None
+            if frame.profile.slow_as_siblings:
+                share_speed, share_current, narrowed = self._as_siblings_run(
+                    frame, slow, share_speed, share_current
+                )
             slow_state, slow_depth = agreeing_departures(
-                z_speed,
-                z_current,
-                self.fraction * band_speed,
-                self.fraction * band_current,
-                self.joint_band_sum or 2.0,
+                share_speed, share_current, 1.0, np.ones(frame.shape), self.joint_band_sum or 2.0
             )
             if frame.z_torque is not None:
                 # friction and a lighter propeller are the torque balance's where it judges them
@@ -198,9 +223,13 @@ class SlowLook(Rule):
             # the departure in the named direction, in σ of the bands as the test counts the fast look's
             n = frame.profile.noise_bands
             with np.errstate(divide="ignore", invalid="ignore"):
-                toward = direction_evidence(
-                    n * z_speed / band_speed, n * z_current / band_current, frame.current_trusted(), n
-                )
+                in_bands = [n * z_speed / band_speed, n * z_current / band_current]
+                if narrowed is not None:  # where the siblings' band is the narrower, in σ of that band
+                    in_bands = [
+                        np.where(narrower, n * self.fraction * share, own)
+                        for narrower, share, own in zip(narrowed, (share_speed, share_current), in_bands)
+                    ]
+                toward = direction_evidence(in_bands[0], in_bands[1], frame.current_trusted(), n)
             named_toward = evidence_toward(toward, slow_state)
         else:
             slow_state, slow_depth = agreeing_departures(
@@ -217,3 +246,46 @@ class SlowLook(Rule):
         if named_toward is not None:
             frame.note_slow_evidence(use, named_toward)
         return carries
+
+    def _as_siblings_run(
+        self,
+        frame: Frame,
+        slow: SlowAverages,
+        share_speed: NDArray[np.float64],
+        share_current: NDArray[np.float64],
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], list[NDArray[np.bool_]]]:
+        """The slow departures' shares of the narrower of their own band and the band the siblings give
+        (module doc, "The slow look as its siblings run"): ``noise_bands · fraction · m`` times the root of
+        the siblings' median mean square, at least as many of the motor's quiet slow σ; each share as it
+        was where the siblings give none. Also where the siblings' band was the narrower (speed, current)."""
+        rows = frame.noise_as_rows()
+        offset_speed, offset_current, quiet_speed, quiet_current = rows.slow_quiet()
+        reach = frame.profile.noise_bands * self.fraction * frame.profile.slow_siblings
+        # the motor in its identified speeds as measured, by its model speed or by the speed it turns (a
+        # motor that lost drive is commanded beyond them and turns short: rules/bands.py, "beyond_range")
+        turning = frame.omega_mean_rad_s if frame.omega_mean_rad_s is not None else frame.omega_rad_s
+        within = rows.in_speed_range(frame.omega_model_rad_s, 0.0) | rows.in_speed_range(turning, 0.0)
+        out, narrower = [], []
+        for share, deviation, offset, quiet, siblings in (
+            (share_speed, slow.delta_omega_rad_s, offset_speed, quiet_speed, frame.siblings_slow_ms_speed),
+            (
+                share_current,
+                slow.delta_current_a,
+                offset_current,
+                quiet_current,
+                frame.siblings_slow_ms_current,
+            ),
+        ):
+            if siblings is None:
+                out.append(share)
+                narrower.append(np.zeros(share.shape, dtype=bool))
+                continue
+            with np.errstate(divide="ignore", invalid="ignore"):
+                theirs = (deviation - offset) / (reach * np.fmax(np.sqrt(siblings), quiet))
+                # a larger share of the siblings' band: it is the narrower (NaN: the motor's own); only in
+                # the motor's identified speeds (beyond, its own model is extrapolated and its bands grow,
+                # rules/bands.py; the motors that take a failed one's share run there together)
+                deeper = within & np.isfinite(theirs) & ~(np.abs(theirs) <= np.abs(share))
+            out.append(np.where(deeper, theirs, share))
+            narrower.append(deeper)
+        return out[0], out[1], narrower
