@@ -107,7 +107,6 @@ class LiveNoise(Rule):
         """``slow_ms_speed`` and ``slow_ms_current``: each motor's slow averages' squared deviation from its
         slow offset, low-passed as the fast ones' z² over its counted samples where the slow look is ready
         (rules/tree.py, "The slow look as its siblings run"); each row's carry advanced."""
-        rows, _ = frame.shape
         slow = frame.slow
         if slow is None:
             frame.slow_ms_speed = frame.slow_ms_current = None
@@ -117,24 +116,15 @@ class LiveNoise(Rule):
             [(slow.delta_omega_rad_s - offset_speed) ** 2, (slow.delta_current_a - offset_current) ** 2]
         )
         counted = np.concatenate([_live_samples(frame) & slow.ready] * 2) & np.isfinite(x2)
-        carried = np.array(carries, dtype=float).reshape(rows, 2, 2)  # (speed, current) × (time, value)
-        low, last_t, last_y = held_average(
-            np.concatenate([frame.time_s, frame.time_s]),
-            np.where(counted, x2, 0.0),
-            counted,
-            self.profile.conditions_siblings_s,
-            np.concatenate([carried[:, 0, 0], carried[:, 1, 0]]),
-            np.concatenate([carried[:, 0, 1], carried[:, 1, 1]]),
+        frame.slow_ms_speed, frame.slow_ms_current, carried = self._low_passes(
+            frame, np.where(counted, x2, 0.0), counted, carries
         )
-        frame.slow_ms_speed, frame.slow_ms_current = low[:rows], low[rows:]
-        return [(last_t[r], last_y[r], last_t[rows + r], last_y[rows + r]) for r in range(rows)]
+        return carried
 
     def _fast(self, frame: Frame, carries: list[Any]) -> list[Any]:
         """The fast deviations' σ and low-passed z² (class doc); each row's carry advanced."""
-        profile = self.profile
         speed, current = _sigmas(frame)
         frame.sigma_speed_rad_s, frame.sigma_current_a = speed, current
-        rows, _ = frame.shape
         counted = _live_samples(frame)
         with np.errstate(divide="ignore", invalid="ignore"):
             z2 = np.concatenate(
@@ -144,17 +134,32 @@ class LiveNoise(Rule):
                 ]
             )
         counted2 = np.concatenate([counted, counted]) & np.isfinite(z2)
+        frame.live_z2_speed, frame.live_z2_current, carried = self._low_passes(
+            frame, np.minimum(z2, Z2_MAX), counted2, carries
+        )
+        return carried
+
+    def _low_passes(
+        self, frame: Frame, values: NDArray[np.float64], counted: NDArray[np.bool_], carries: list[Any]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], list[tuple[float, ...]]]:
+        """The speed's and the current's ``values`` (stacked: every row's speed, then every row's current)
+        averaged over their ``counted`` samples for ``conditions_siblings_s`` (:func:`held_average`), from
+        each row's carry of (time, value) for the speed then the current: the two averages and the carries
+        advanced."""
+        rows = frame.shape[0]
         carried = np.array(carries, dtype=float).reshape(rows, 2, 2)  # (speed, current) × (time, value)
         low, last_t, last_y = held_average(
             np.concatenate([frame.time_s, frame.time_s]),
-            np.minimum(z2, Z2_MAX),
-            counted2,
-            profile.conditions_siblings_s,
+            values,
+            counted,
+            self.profile.conditions_siblings_s,
             np.concatenate([carried[:, 0, 0], carried[:, 1, 0]]),
             np.concatenate([carried[:, 0, 1], carried[:, 1, 1]]),
         )
-        frame.live_z2_speed, frame.live_z2_current = low[:rows], low[rows:]
-        return [(last_t[r], last_y[r], last_t[rows + r], last_y[rows + r]) for r in range(rows)]
+        advanced: list[tuple[float, ...]] = [
+            (last_t[r], last_y[r], last_t[rows + r], last_y[rows + r]) for r in range(rows)
+        ]
+        return low[:rows], low[rows:], advanced
 
 
 def held_average(
