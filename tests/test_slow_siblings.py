@@ -15,7 +15,8 @@ def test_an_open_transistor_in_moderate_air_is_named_against_the_siblings_and_fr
     """Development world 4 (ESCs at 30 Hz reporting their input current), identified from its 150-s
     healthy flight, 30-s flights in moderate air: the slow look's own bands, extrapolated beyond the
     identification flight's activity, leave the open transistor NORMAL after onset; bounded by the
-    siblings' slow averages it is named on most samples. Friction, named in the torque balance, is named
+    siblings' slow averages it is named on about a third of them (36 %; not in the slow look's own wait
+    after each input step, frequent in moderate air). Friction, named in the torque balance, is named
     as often either way, and no other motor is announced in any of the four diagnoses."""
     from mav_motor_health.config import load_profile
     from mav_motor_health.diagnosis.states import MotorState
@@ -42,5 +43,98 @@ def test_an_open_transistor_in_moderate_air_is_named_against_the_siblings_and_fr
         accuracy[fault] = [
             float(np.mean(r["state"][a] == MotorState.from_label(fault))) for r, a in zip(results, after)
         ]
-    assert accuracy["F4.1"][0] < 0.1 and accuracy["F4.1"][1] > 0.6, accuracy
+    assert accuracy["F4.1"][0] < 0.1 and accuracy["F4.1"][1] > 0.3, accuracy
     assert accuracy["F1.1"][1] == accuracy["F1.1"][0] > 0.5, accuracy
+
+
+def test_a_siblings_mean_square_is_a_reference_only_once_it_holds_a_time_constant_of_samples() -> None:
+    """The live noise's counted mean (rules/bands.py, :func:`counted_mean`): a motor counted for a moment
+    gives its siblings no reference, one counted for a time constant does (the mean of what it counted),
+    a long gap fades it until a time constant's worth is counted again (one sample after the gap does
+    not bridge it), and the same values come from the samples given in calls of any length."""
+    from mav_motor_health.diagnosis.rules.bands import counted_mean
+
+    tau, dt = 2.0, 0.05
+    time_s = np.arange(0.0, 30.0, dt)[None, :]
+    rng = np.random.default_rng(7)
+    values = (3.0 + rng.normal(0.0, 0.5, time_s.shape)) ** 2
+    counted = np.zeros(time_s.shape, dtype=bool)
+    counted[0, (time_s[0] >= 1.0) & (time_s[0] < 1.5)] = True  # a moment: a quarter of tau
+    counted[0, (time_s[0] >= 5.0) & (time_s[0] < 9.0)] = True  # two time constants
+    counted[0, (time_s[0] >= 20.0) & (time_s[0] < 20.05)] = True  # one sample after a gap of 5 tau
+    counted[0, (time_s[0] >= 25.0)] = True  # counted again from 25 s
+    nan = np.full(1, np.nan)
+    mean, *_ = counted_mean(time_s, values, counted, tau, nan, nan, nan, nan)
+    t = time_s[0]
+    assert np.isnan(mean[0, t < 5.0]).all()  # before, and after the moment: nothing
+    assert np.isnan(mean[0, (t >= 5.0) & (t < 5.0 + tau * 0.95)]).all()
+    ready = (t >= 5.0 + tau * 1.05) & (t < 9.0)
+    assert np.isfinite(mean[0, ready]).all()
+    assert abs(mean[0, t < 9.0][-1] - values[0, (t >= 5.0) & (t < 9.0)].mean()) < 1.5
+    # held while not counted, then faded: by one time constant after the last counted sample at most
+    # (the weight was below 1 there), and not back with one sample after the gap
+    held = np.isfinite(mean[0]) & (t >= 9.0) & (t < 20.0)
+    assert held[(t >= 9.0) & (t < 9.5)].all() and not held[t >= 9.0 + tau].any()
+    assert np.isnan(mean[0, (t >= 20.0) & (t < 25.0 + 0.95 * tau)]).all()
+    assert np.isfinite(mean[0, t >= 25.0 + 1.05 * tau]).all()
+    # in calls of random lengths, each carrying the last one's state
+    carry = [nan, nan, nan, nan]
+    parts, at = [], 0
+    while at < t.size:
+        n = int(rng.integers(1, 40))
+        part = slice(at, min(at + n, t.size))
+        got, last_t, last_sum, last_weight = counted_mean(
+            time_s[:, part], values[:, part], counted[:, part], tau, *carry
+        )
+        carry = [np.array(last_t), np.array(last_sum), np.array(last_weight), time_s[:, part][:, -1]]
+        parts.append(got)
+        at = part.stop
+    np.testing.assert_allclose(np.concatenate(parts, axis=1), mean, rtol=1e-9, equal_nan=True)
+
+
+def test_the_siblings_band_is_the_narrower_only_where_they_give_one_and_the_slow_averages_have_settled(
+    paper_motor,
+) -> None:
+    """The slow look's share against its siblings (rules/tree.py, ``SlowLook._as_siblings_run``), one
+    sample per row, the same departure of 10 rad/s below the model in each: where three or more siblings
+    give a mean square (here 1 (rad/s)², a band of 4.5 rad/s) the departure's share is theirs; where none
+    do (NaN) it stays the motor's own, not one of the quiet σ's band; and in the slow look's own wait
+    after an input step, or beyond the motor's identified speeds, it stays its own too."""
+    from mav_motor_health.config import load_profile
+    from mav_motor_health.diagnosis.noise import BandNoise, EquationNoise
+    from mav_motor_health.diagnosis.rules.base import Frame, SlowAverages
+    from mav_motor_health.diagnosis.rules.tree import SlowLook
+
+    profile = dataclasses.replace(load_profile("flight_vehicle"), slow_siblings=1.0)
+    quiet = EquationNoise(0.5, 0.0)
+    noise = [
+        BandNoise(
+            5.0, 0.3, omega_low_rad_s=400.0, omega_high_rad_s=600.0, slow_speed=quiet, slow_current=quiet
+        )
+    ] * 4
+    rows = (4, 1)
+    frame = Frame(
+        params=paper_motor,
+        profile=profile,
+        time_s=np.zeros(rows),
+        voltage_v=np.full(rows, 10.0),
+        omega_rad_s=np.full(rows, 500.0),
+        current_a=np.full(rows, 5.0),
+        counts=[1] * 4,
+        noise=noise,
+    )
+    frame.omega_model_rad_s = np.array([500.0, 500.0, 500.0, 700.0])[:, None]
+    frame.omega_mean_rad_s = np.array([490.0, 490.0, 490.0, 690.0])[:, None]
+    settle = 2.4
+    frame.since_step_s = np.array([5.0, 5.0, 1.0, 5.0])[:, None]
+    frame.siblings_slow_ms_speed = np.array([1.0, np.nan, 1.0, 1.0])[:, None]
+    frame.siblings_slow_ms_current = np.full(rows, np.nan)
+    deviation = np.full(rows, -10.0)
+    slow = SlowAverages(deviation, np.zeros(rows), np.ones(rows, dtype=bool), settle)
+    own = np.full(rows, -0.5)  # the departure's share of the motor's own band
+    look = SlowLook(fraction=profile.slow_band_fraction)
+    speed, current, narrower = look._as_siblings_run(frame, slow, own.copy(), np.zeros(rows))
+    theirs = -10.0 / (profile.noise_bands * profile.slow_siblings * 1.0)
+    np.testing.assert_allclose(speed[:, 0], [theirs, -0.5, -0.5, -0.5])
+    assert narrower[0][:, 0].tolist() == [True, False, False, False]
+    assert not narrower[1].any() and (current == 0).all()

@@ -241,7 +241,8 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
     ``slow_siblings``: the slow look's bands at most that multiple of the siblings' slow averages' root
     mean square (each motor's low-passed by the live noise with a carry of its own, the median the
     stage's: rules/tree.py, "The slow look as its siblings run"), small enough here that it names
-    samples the motor's own slow bands leave NORMAL."""
+    samples the motor's own slow bands leave NORMAL, and none before a sibling's mean holds a time
+    constant's worth of samples."""
     motors = _window(lost=False)
     from mav_motor_health.diagnosis.pipeline import diagnose
     from mav_motor_health.telemetry.table import TelemetryTable
@@ -257,7 +258,9 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
     if torque_spread:
         profile = dataclasses.replace(profile, torque_siblings_spread=torque_spread)
     if slow_siblings:
-        profile = dataclasses.replace(profile, slow_siblings=slow_siblings)
+        # a sibling's mean square is a reference once it holds one time constant of counted samples: a
+        # shorter one than the profile's ten seconds, for the window's sixteen
+        profile = dataclasses.replace(profile, slow_siblings=slow_siblings, conditions_siblings_s=2.0)
         # the slow look's own noise, as wide as the fast deviations' (none measured: no slow look)
         noise = {
             m: dataclasses.replace(
@@ -324,7 +327,9 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
         assert moved.mean() > 0.3 and np.isnan(alone["speed_siblings_rad_s"]).all()
     if slow_siblings:  # the siblings' slow bands are narrower somewhere, and name what the own ones do not
         own = diagnose(table, paper_motor, dataclasses.replace(profile, slow_siblings=0.0), noise)
-        assert ((whole["state"] != 0) & (own["state"] == 0)).sum() > 10
+        named = (whole["state"] != 0) & (own["state"] == 0)
+        assert named.sum() > 10
+        assert whole["time_s"][named].min() > 22.0 + profile.conditions_siblings_s
     if step_sigmas:  # the model's jumps hold samples back that the volts' steps do not
         plain = diagnose(table, paper_motor, base, noise)
         held = plain["steady"] & ~whole["steady"]

@@ -160,10 +160,11 @@ class ThresholdProfile:
     ``slow_siblings`` (m > 0, with ``conditions_siblings`` and ``slow_band_fraction``): the slow look's
     bands are at most as wide as m times how far the other motors' slow averages run from their models
     right now (the square root of the median over the siblings of each one's squared slow deviation,
-    low-passed over ``conditions_siblings_s``, in the deviation's own unit; never below the motor's own
-    quiet slow σ), times the fast bands' ``noise_bands`` and ``slow_band_fraction`` (:mod:`.rules.tree`,
-    "The slow look as its siblings run"; nothing to bound without them). 0, the default: the slow look's
-    bands from its own measured noise alone.
+    averaged over ``conditions_siblings_s``, a sibling's only once it holds that long of its counted
+    samples, in the deviation's own unit; never below the motor's own quiet slow σ), times the fast bands'
+    ``noise_bands`` and ``slow_band_fraction``, not in the slow look's wait after an input step
+    (:mod:`.rules.tree`, "The slow look as its siblings run"; nothing to bound without them). 0, the
+    default: the slow look's bands from its own measured noise alone.
     ``equation_bands`` (n > 0, with ``noise_bands``): friction (F1.1) and a lighter propeller (F3.1),
     which move the model's torque balance alone, are judged in it, against n times its own noise, which
     identification measured (:mod:`.rules.equations`; not where the ESC reports its input current, whose

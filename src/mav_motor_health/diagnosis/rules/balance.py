@@ -266,7 +266,9 @@ class BalanceRule(CompareRule):
                 # the fast look averages long already, and a slower one would hold every gust's upset
                 # for seconds
                 ready = slow_warm & steady & ~stalled_like & (bal.tau_s <= self.residual_tau_s)
-            frame.slow = SlowAverages(slow_both[:rows], slow_both[rows:], ready)
+            frame.slow = SlowAverages(
+                slow_both[:rows], slow_both[rows:], ready, self.slow_factor * self.settle_s
+            )
         frame.omega_model_rad_s, frame.current_model_a = omega_pred, current_pred
         frame.omega_judged_rad_s, frame.current_judged_a = omega_seen, current_seen
         frame.steady = steady

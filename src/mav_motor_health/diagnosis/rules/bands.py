@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._arrays import broadcast_to
-from ...model.dynamics import affine_recurrence, marked_before
+from ...model.dynamics import affine_recurrence, last_of, marked_before, previous
 from .base import Frame, Rule
 
 if TYPE_CHECKING:
@@ -91,8 +91,9 @@ class LiveNoise(Rule):
     profile: ThresholdProfile
 
     def new_carry(self) -> Any:
-        # (time, value) of the speed's and the current's low-pass, then of the slow averages' (slow_siblings)
-        return (math.nan,) * (8 if self.profile.slow_as_siblings else 4)
+        # (time, value) of the speed's and the current's low-pass, then (slow_siblings) the slow averages'
+        # counted means' (time, sum, weight) of the speed and the current and the row's last sample time
+        return (math.nan,) * (4 + SLOW_CARRY if self.profile.slow_as_siblings else 4)
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
         profile = self.profile
@@ -105,8 +106,10 @@ class LiveNoise(Rule):
 
     def _slow_squares(self, frame: Frame, carries: list[Any]) -> list[tuple[float, ...]]:
         """``slow_ms_speed`` and ``slow_ms_current``: each motor's slow averages' squared deviation from its
-        slow offset, low-passed as the fast ones' z² over its counted samples where the slow look is ready
-        (rules/tree.py, "The slow look as its siblings run"); each row's carry advanced."""
+        slow offset, averaged over ``conditions_siblings_s`` of its counted samples where the slow look is
+        ready, and NaN (no reference for its siblings) until that average holds one time constant's worth
+        of them (:func:`counted_mean`; rules/tree.py, "The slow look as its siblings run"); each row's carry
+        advanced."""
         slow = frame.slow
         if slow is None:
             frame.slow_ms_speed = frame.slow_ms_current = None
@@ -116,10 +119,35 @@ class LiveNoise(Rule):
             [(slow.delta_omega_rad_s - offset_speed) ** 2, (slow.delta_current_a - offset_current) ** 2]
         )
         counted = np.concatenate([_live_samples(frame) & slow.ready] * 2) & np.isfinite(x2)
-        frame.slow_ms_speed, frame.slow_ms_current, carried = self._low_passes(
-            frame, np.where(counted, x2, 0.0), counted, carries
+        rows = frame.shape[0]
+        c = np.array(carries, dtype=float).reshape(rows, SLOW_CARRY)
+        time2 = np.concatenate([frame.time_s, frame.time_s])
+        seen = np.concatenate([c[:, 6], c[:, 6]])
+        mean, last_t, last_sum, last_weight = counted_mean(
+            time2,
+            np.where(counted, x2, 0.0),
+            counted,
+            self.profile.conditions_siblings_s,
+            np.concatenate([c[:, 0], c[:, 3]]),
+            np.concatenate([c[:, 1], c[:, 4]]),
+            np.concatenate([c[:, 2], c[:, 5]]),
+            seen,
         )
-        return carried
+        frame.slow_ms_speed, frame.slow_ms_current = mean[:rows], mean[rows:]
+        ends = last_of(frame.time_s, frame.counts)  # each row's last sample time (None: no sample)
+        last_seen = [c[r, 6] if end is None else end for r, end in enumerate(ends)]
+        return [
+            (
+                last_t[r],
+                last_sum[r],
+                last_weight[r],
+                last_t[rows + r],
+                last_sum[rows + r],
+                last_weight[rows + r],
+                last_seen[r],
+            )
+            for r in range(rows)
+        ]
 
     def _fast(self, frame: Frame, carries: list[Any]) -> list[Any]:
         """The fast deviations' σ and low-passed z² (class doc); each row's carry advanced."""
@@ -160,6 +188,63 @@ class LiveNoise(Rule):
             (last_t[r], last_y[r], last_t[rows + r], last_y[rows + r]) for r in range(rows)
         ]
         return low[:rows], low[rows:], advanced
+
+
+#: what a row carries between calls for each of its slow averages' counted means (speed, then current):
+#: (last counted time, sum, weight) each, then the row's last sample time
+SLOW_CARRY = 7
+#: a counted mean is a reference only once its weight is this: one time constant's worth of counted
+#: samples, not the few of a moment nor what a long gap has faded
+COUNTED_WEIGHT_MIN = 1.0 - math.exp(-1.0)
+
+
+def counted_mean(
+    time_s: NDArray[np.float64],
+    values: NDArray[np.float64],
+    counted: NDArray[np.bool_],
+    tau_s: float,
+    carry_t: NDArray[np.float64],
+    carry_sum: NDArray[np.float64],
+    carry_weight: NDArray[np.float64],
+    carry_seen_s: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], list[float], list[float], list[float]]:
+    """An exponentially weighted mean of each row's counted values (time constant ``tau_s``) that knows
+    how much it holds: a counted sample adds its value and its weight ``1 − exp(−h/τ)``, h the time it
+    stands for (since the row's previous sample, counted or not, and at most since its previous counted
+    one), to a sum and a weight that both fade by ``exp(−Δt/τ)`` over the time Δt since the previous
+    counted sample. The mean is sum/weight wherever the weight, faded to the sample's time, is at least
+    :data:`COUNTED_WEIGHT_MIN` (one time constant's worth of counted samples), else NaN: unlike
+    :func:`held_average`, a row counted for a moment, or after a gap one sample bridges, gives no value.
+    ``carry_seen_s``: each row's last sample time in the calls before (the first sample ever stands for
+    no time). Returns the means and each row's last counted time, sum and weight (the carried ones where
+    none was counted); a split of the rows into calls gives the same values (to rounding)."""
+    rows = values.shape[0]
+    last, _, t_before = marked_before(time_s, counted, carry_t)
+    with np.errstate(invalid="ignore", over="ignore"):
+        fade = np.exp(-np.maximum(time_s - t_before, 0.0) / tau_s)
+        stands = np.fmin(time_s - previous(time_s, carry_seen_s), time_s - t_before)
+        weight = 1.0 - np.exp(-np.maximum(stands, 0.0) / tau_s)
+    fade = np.where(counted & np.isfinite(fade), fade, 1.0)
+    weight = np.where(counted & np.isfinite(weight), weight, 0.0)
+    sums = affine_recurrence(
+        np.concatenate([fade, fade]),
+        np.concatenate([weight * np.where(counted, values, 0.0), weight]),
+        np.concatenate([np.nan_to_num(carry_sum), np.nan_to_num(carry_weight)]),
+    )
+    total, held = sums[:rows], sums[rows:]
+    t_last = np.where(
+        last >= 0, np.take_along_axis(time_s, np.maximum(last, 0), axis=1), np.asarray(carry_t)[:, None]
+    )
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        now = held * np.exp(-np.maximum(time_s - t_last, 0.0) / tau_s)
+        mean = np.where(now >= COUNTED_WEIGHT_MIN, total / held, np.nan)
+    ends = last[:, -1]
+    at = np.maximum(ends, 0)
+    r = np.arange(rows)
+    last_t = np.where(ends >= 0, time_s[r, at], carry_t)
+    last_sum = np.where(ends >= 0, total[r, at], carry_sum)
+    last_weight = np.where(ends >= 0, held[r, at], carry_weight)
+    return mean, last_t.tolist(), last_sum.tolist(), last_weight.tolist()
 
 
 def held_average(

@@ -52,6 +52,9 @@ class SlowAverages:
     delta_omega_rad_s: NDArray[np.float64]
     delta_current_a: NDArray[np.float64]
     ready: NDArray[np.bool_]
+    #: how long after an input step the slow averages still hold its upset [s]: the slow look's own wait
+    #: (the fast look's times ``slow_factor``), whether or not it is judged there
+    settle_s: float = 0.0
 
 
 @dataclass

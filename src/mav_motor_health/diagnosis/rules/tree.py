@@ -25,7 +25,7 @@ two to three times wider than the healthy slow averages did, and the reach grew 
 top (held-out world 1008: a slow band of about 90 rad/s around healthy slow deviations of about ±7 rad/s,
 10th to 90th percentile, and an open transistor's 35 rad/s read NORMAL). How far healthy slow averages run
 from their models in the air of the moment, the five siblings show: each motor's squared slow deviation
-from its slow offset is low-passed over ``conditions_siblings_s`` (:class:`~.bands.LiveNoise`), the
+from its slow offset is averaged over ``conditions_siblings_s`` (:class:`~.bands.LiveNoise`), the
 vehicle stage takes the median of the other motors' latest (:mod:`..siblings`), and the slow look's band
 is at most ``noise_bands · slow_band_fraction · m`` times its square root (m = ``slow_siblings``), never
 below as many of the motor's own quiet slow σ: the narrower of the two bands. A motor's own departure
@@ -34,9 +34,13 @@ sibling moves a median of five little. Unlike the siblings' spread at an instant
 parting in a yaw turn make small, each sibling's own mean square over seconds holds its manoeuvres'
 departures (``benchmarks/bench_slow_siblings.py``, docs/flight.md). Only where the motor lies in its
 identified speeds (by its model speed or the speed it turns): the motors that take a failed one's share
-run beyond them together. Not in the shipped profile: on a vehicle whose motors seldom reach their
-identified speeds, a sibling counted for a moment holds the mean square of a few quiet samples and
-narrows the others' bands (docs/flight.md, "The slow look as its siblings run").
+run beyond them together. A sibling's mean square is a reference only once it holds one time constant's
+worth of its counted samples (:func:`~.bands.counted_mean`): on a vehicle whose motors seldom reach their
+identified speeds, a sibling counted for a moment held the mean square of a few quiet samples and
+narrowed the others' bands; where fewer than three siblings give one, the band is the motor's own; and
+not in the slow look's own wait after an input step (``slow_factor × settle_s``,
+:class:`~.base.SlowAverages`): a transient of one motor stays in its slow average for seconds, in its
+siblings' mean squares never (docs/flight.md, "The slow look as its siblings run, made safe and shipped").
 """
 
 from __future__ import annotations
@@ -265,6 +269,11 @@ class SlowLook(Rule):
         # motor that lost drive is commanded beyond them and turns short: rules/bands.py, "beyond_range")
         turning = frame.omega_mean_rad_s if frame.omega_mean_rad_s is not None else frame.omega_rad_s
         within = rows.in_speed_range(frame.omega_model_rad_s, 0.0) | rows.in_speed_range(turning, 0.0)
+        # and not while the slow averages still hold an input step's upset, which the siblings' mean squares
+        # over seconds do not follow (the slow look's own wait after a step, rules/balance.py)
+        if frame.since_step_s is not None:
+            with np.errstate(invalid="ignore"):
+                within &= ~(frame.since_step_s < slow.settle_s)
         out, narrower = [], []
         for share, deviation, offset, quiet, siblings in (
             (share_speed, slow.delta_omega_rad_s, offset_speed, quiet_speed, frame.siblings_slow_ms_speed),
@@ -281,7 +290,8 @@ class SlowLook(Rule):
                 narrower.append(np.zeros(share.shape, dtype=bool))
                 continue
             with np.errstate(divide="ignore", invalid="ignore"):
-                theirs = (deviation - offset) / (reach * np.fmax(np.sqrt(siblings), quiet))
+                # (np.maximum, not fmax: where the siblings give no reference, NaN, the motor's own band)
+                theirs = (deviation - offset) / (reach * np.maximum(np.sqrt(siblings), quiet))
                 # a larger share of the siblings' band: it is the narrower (NaN: the motor's own); only in
                 # the motor's identified speeds (beyond, its own model is extrapolated and its bands grow,
                 # rules/bands.py; the motors that take a failed one's share run there together)
