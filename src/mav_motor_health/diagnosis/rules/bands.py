@@ -84,8 +84,10 @@ def _sigmas(frame: Frame) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
 @dataclass(frozen=True)
 class LiveNoise(Rule):
     """Writes ``sigma_speed_rad_s``, ``sigma_current_a`` and the low-passed ``live_z2_speed``,
-    ``live_z2_current`` of each motor (module doc, "Grown as the siblings run"); carries each low-pass's
-    last counted time and value (speed, then current)."""
+    ``live_z2_current`` of each motor (module doc, "Grown as the siblings run"), and where the profile
+    bounds the slow look by its siblings (``slow_siblings``) ``slow_ms_speed``, ``slow_ms_current``
+    (:meth:`_slow_squares`); carries each low-pass's last counted time and value (speed, then current),
+    then the slow ones' counted means (:data:`SLOW_CARRY`)."""
 
     name = "live_noise"
     profile: ThresholdProfile
