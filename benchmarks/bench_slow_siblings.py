@@ -49,6 +49,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from mav_motor_health.config import load_profile  # noqa: E402
+from mav_motor_health.diagnosis.rules.bands import held_average  # noqa: E402
 from mav_motor_health.errors import MotorHealthError  # noqa: E402
 from mav_motor_health.evaluation.campaign import TURBULENCE_LEVELS  # noqa: E402
 from mav_motor_health.evaluation.worlds import diagnose_flight, identify_world, world_flights  # noqa: E402
@@ -59,14 +60,14 @@ MAD_TO_SIGMA = 1.4826
 
 def low_pass(t: NDArray[np.float64], x: NDArray[np.float64], tau_s: float) -> NDArray[np.float64]:
     """First-order low-pass of ``x`` over its finite samples at times ``t``, started on the first; held
-    (the last value) on the others."""
-    out, y, last = np.full(len(x), np.nan), math.nan, math.nan
-    for i in range(len(x)):
-        if math.isfinite(x[i]):
-            y = x[i] if not math.isfinite(y) else y + (1.0 - math.exp(-(t[i] - last) / tau_s)) * (x[i] - y)
-            last = t[i]
-        out[i] = y
-    return out
+    (the last value) on the others: the live noise's
+    :func:`~mav_motor_health.diagnosis.rules.bands.held_average` on one row."""
+    finite = np.isfinite(x)
+    start = np.full(1, np.nan)
+    out, _, _ = held_average(
+        t[None, :], np.where(finite, x, 0.0)[None, :], finite[None, :], tau_s, start, start
+    )
+    return np.asarray(out[0])
 
 
 #: what is compared: its value from the diagnosis' columns, the noise keys of its quiet σ and offset, and
