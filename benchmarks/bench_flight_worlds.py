@@ -131,6 +131,9 @@ def print_world(e: WorldEvaluation) -> None:
             f"judged {_pct(e.judged_share(level))} % | false {e.false_events(level)} "
             f"in {60 * e.healthy_hours(level):.0f} min{_states(e.false_events_by_state(level))}"
         )
+        noticed = [e.noticed(level, f) for f in FAULTS]
+        if noticed != [e.accuracy(level, f) for f in FAULTS]:  # a speed-only state named some of them
+            print(f"  {'':8s} or its speed-only state % {' '.join(_pct(n, 5) for n in noticed)}")
 
 
 def _states(counts: dict[str, int]) -> str:

