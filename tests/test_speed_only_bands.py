@@ -45,3 +45,30 @@ def test_a_vehicle_without_usable_current_names_slow_from_its_own_speed_noise(tm
                 )
     assert slow["F1.1"][0] == 0.0, slow  # beyond 15 % of the model speed: never
     assert slow["F1.1"][1] > 0.9 and slow["F4.1"][0] > 0.9, slow
+
+
+def test_a_command_dip_between_two_reports_larger_than_a_step_restarts_the_wait() -> None:
+    """The balance rule's wait after an input step also starts where the commands between two reports
+    went further than a step and came back (``input_excursion_v``, a dip the samples never saw: held-out
+    world 1026, docs/flight.md), and only there: an excursion below the step threshold waits for nothing."""
+    from mav_motor_health.config import load_motor_params, load_profile
+    from mav_motor_health.diagnosis.pipeline import diagnose_motor
+    from mav_motor_health.model.equations import steady_state
+
+    params, profile = load_motor_params(), load_profile("flight")
+    t = np.arange(0.0, 10.0, 0.1)
+    v = np.full(t.size, 8.0)
+    steady = steady_state(params, v)
+    omega, current = np.asarray(steady.omega_rad_s), np.asarray(steady.current_a)
+    dip_at = int(np.flatnonzero(np.isclose(t, 6.0))[0])
+    since = {}
+    for name, size_v in (("none", 0.0), ("small", 0.5 * profile.steady.step_v), ("dip", 3.0)):
+        excursion = np.zeros(t.size)
+        excursion[dip_at] = size_v
+        cols, _ = diagnose_motor(params, profile, t, v, omega, current, input_excursion_v=excursion)
+        since[name] = cols["since_step_s"]
+    assert np.isclose(since["none"][dip_at], since["none"][dip_at - 1] + 0.1)
+    np.testing.assert_array_equal(since["small"], since["none"])
+    assert since["dip"][dip_at] == 0.0 and np.isclose(since["dip"][-1], t[-1] - 6.0)
+    np.testing.assert_array_equal(since["dip"][:dip_at], since["none"][:dip_at])
+    assert not cols["steady"][dip_at : dip_at + 5].any()  # waits settle_s (0.6 s) after it

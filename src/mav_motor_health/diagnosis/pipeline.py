@@ -184,7 +184,8 @@ def diagnose_motor(
     how far each sample's input went beyond the two held inputs since the sample before [V] (a log
     table's column of that name, telemetry/assemble.py), which the balance rule and its pairing guard
     weigh where the profile asks them to (``steady.excursion_weight``, ``excursion_pairing_weight``; off
-    in the shipped profiles; None: not at all). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
+    in the shipped profiles; None: not at all), and one larger than a step restarts its wait after a step
+    in every profile (:mod:`.rules.balance`). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
     bands from (:mod:`.noise`). A motor alone has no siblings (:mod:`.siblings`): :func:`start_motor`
     and :meth:`StartedCall.finish` with the vehicle stage between them judge the torque against them.
     """
