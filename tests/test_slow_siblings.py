@@ -133,8 +133,12 @@ def test_the_siblings_band_is_the_narrower_only_where_they_give_one_and_the_slow
     slow = SlowAverages(deviation, np.zeros(rows), np.ones(rows, dtype=bool), settle)
     own = np.full(rows, -0.5)  # the departure's share of the motor's own band
     look = SlowLook(fraction=profile.slow_band_fraction)
-    speed, current, narrower = look._as_siblings_run(frame, slow, own.copy(), np.zeros(rows))
+    speed, current, narrower, siblings_speed = look._as_siblings_run(frame, slow, own.copy(), np.zeros(rows))
     theirs = -10.0 / (profile.noise_bands * profile.slow_siblings * 1.0)
     np.testing.assert_allclose(speed[:, 0], [theirs, -0.5, -0.5, -0.5])
     assert narrower[0][:, 0].tolist() == [True, False, False, False]
     assert not narrower[1].any() and (current == 0).all()
+    # the share of the siblings' band itself (what the speed alone is judged in): only where they give one
+    # and the motor is neither in the wait nor beyond its identified speeds, NaN elsewhere
+    assert siblings_speed is not None
+    np.testing.assert_allclose(siblings_speed[:, 0], [theirs, np.nan, np.nan, np.nan])

@@ -72,3 +72,35 @@ def test_a_command_dip_between_two_reports_larger_than_a_step_restarts_the_wait(
     assert since["dip"][dip_at] == 0.0 and np.isclose(since["dip"][-1], t[-1] - 6.0)
     np.testing.assert_array_equal(since["dip"][:dip_at], since["none"][:dip_at])
     assert not cols["steady"][dip_at : dip_at + 5].any()  # waits settle_s (0.6 s) after it
+
+
+def test_the_slow_look_judges_the_speed_alone_against_its_siblings(tmp_path) -> None:
+    """Development world 2 (no usable current) in gusty air: the fast look's bands grow with the air
+    beyond what identification saw, and an open transistor's few percent of speed stay inside them. The
+    slow look, whose average is several times longer, now judges the speed alone too where the profile
+    judges it in its own noise, against the band its siblings' slow averages give (rules/tree.py, "The
+    speed alone"): on a 60-s
+    flight the faulty motor reads SLOW on most of its judged samples after onset (75 %), where before it
+    did on 2 % (the fast look's alone), and is announced SLOW, where before it never was; no other motor,
+    and no motor of a healthy gusty flight, is announced anything."""
+    from mav_motor_health.config import load_profile
+    from mav_motor_health.diagnosis.states import MotorState
+    from mav_motor_health.evaluation.worlds import diagnose_flight, identify_world, world_flights
+
+    _, _, vehicle = identify_world(2, tmp_path)
+    profile = load_profile("flight_vehicle")
+    flights = world_flights(2, duration_s=60.0, healthy_flights=1, levels=("gusty",), faults=("F4.1",))
+    assert [f.fault for f in flights] == ["F4.1", None]
+    for flight in flights:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = diagnose_flight(flight, tmp_path, vehicle, profile)
+        others = r["motor"] != flight.motor if flight.fault else np.ones(len(r["motor"]), dtype=bool)
+        assert (r["announced"][others] == MotorState.NORMAL).all(), flight.name
+        if flight.fault:
+            after = (r["motor"] == flight.motor) & (r["time_s"] > flight.onset_s) & r["steady"].astype(bool)
+            share = float(np.mean(r["state"][after] == MotorState.SLOW))
+            assert after.sum() > 50 and share > 0.5, (int(after.sum()), share)
+            # and announced: SLOW on 47 % of the motor's samples after onset (before: never)
+            since = (r["motor"] == flight.motor) & (r["time_s"] > flight.onset_s)
+            assert np.mean(r["announced"][since] == MotorState.SLOW) > 0.3

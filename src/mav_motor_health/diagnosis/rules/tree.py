@@ -41,6 +41,25 @@ narrowed the others' bands; where fewer than three siblings give one, the band i
 not in the slow look's own wait after an input step (``slow_factor × settle_s``,
 :class:`~.base.SlowAverages`): a transient of one motor stays in its slow average for seconds, in its
 siblings' mean squares never (docs/flight.md, "The slow look as its siblings run, made safe and shipped").
+
+**The speed alone.** Where a sample has no trusted current (ESCs that report none, a reading set aside)
+and the profile judges the speed alone in its own noise (bands from the vehicle's noise,
+``speed_only_band_frac = 0``, the slow look as its siblings run), the slow look reads the slow speed
+average alone as the tree reads the fast one there: ``SLOW`` below its band, ``FAST`` above it (depth 1),
+its evidence counted for those directions as the others' is. Its band is the siblings' alone (``noise_bands
+· fraction · m`` times the root of their median slow mean square, at least as many of the motor's quiet
+slow σ), never the motor's own, and where the siblings give none (fewer than three, beyond the identified
+speeds, in the slow look's wait) the speed alone is not read slowly. Speed and current agreeing on a fault
+is what keeps the slow look's own band safe; alone, the speed has only its siblings to agree with. In
+busier air than identification's, the motor's own slow σ is an extrapolation: on held-out world 1025
+(no usable current) in gusty air, with commands and reports paired four to eight times more loosely than
+on its identification flight, healthy slow speed averages ran 26–47 rad/s from the model against an
+extrapolated slow σ of about 5, and judged against the narrower of the two bands (as the slow look with a
+current is) the speed alone raised four false events in 100 minutes; its siblings, paired as loosely, held
+as much. In busier air the fast look's bands grow with the air and an open transistor's or friction's few
+percent of speed stay inside them, while the siblings' slow averages stay near the model (docs/flight.md,
+"The slow look reads the speed alone"). The 15 % band of the other profiles is not a noise band, and
+there the slow look still judges only samples with a trusted current.
 """
 
 from __future__ import annotations
@@ -177,7 +196,8 @@ class SlowLook(Rule):
     of its σ at the sample (grown beyond the identified conditions alike), times ``fraction`` (the shipped
     profile: 1, no narrowing); a motor whose vehicle file has no slow noise is not read this way. Where the
     torque balance judges friction and a lighter propeller (:mod:`.equations`), the slow look names only an
-    open transistor."""
+    open transistor. Without a trusted current, where the profile judges the speed alone in its own noise,
+    the slow speed alone names ``SLOW`` or ``FAST`` (module doc, "The speed alone")."""
 
     name = "slow_look"
     fraction: float
@@ -188,11 +208,16 @@ class SlowLook(Rule):
         if slow is None or not self.fraction > 0:
             return carries
         state = frame.state
-        candidates = slow.ready & (state == Code.NORMAL) & frame.current_trusted()
+        trusted = frame.current_trusted()
+        own_noise = frame.noise is not None and frame.profile.noise_bands > 0
+        # the speed alone too where the profile judges it in its own noise (module doc, "The speed alone")
+        speed_alone = own_noise and frame.profile.speed_only_band_frac == 0 and frame.profile.slow_as_siblings
+        alone = ~trusted if speed_alone else None
+        candidates = slow.ready & (state == Code.NORMAL) & (trusted if alone is None else True)
         if not np.any(candidates):
             return carries
         named_toward = None
-        if frame.noise is not None and frame.profile.noise_bands > 0:
+        if own_noise:
             # bands from the vehicle's noise: the slow averages in units of their own measured σ, against
             # as many of them as the fast look's bands hold of its σ here (noise_bands, grown beyond the
             # identified conditions as those are); a motor whose slow noise was not measured: none
@@ -211,14 +236,25 @@ class SlowLook(Rule):
             with np.errstate(divide="ignore", invalid="ignore"):
                 share_speed = z_speed / (self.fraction * band_speed)
                 share_current = z_current / (self.fraction * band_current)
-            narrowed = None
+            narrowed, siblings_speed = None, None
             if frame.profile.slow_as_siblings:
-                share_speed, share_current, narrowed = self._as_siblings_run(
+                share_speed, share_current, narrowed, siblings_speed = self._as_siblings_run(
                     frame, slow, share_speed, share_current
                 )
             slow_state, slow_depth = agreeing_departures(
                 share_speed, share_current, 1.0, np.ones(frame.shape), self.joint_band_sum or 2.0
             )
+            if alone is not None and siblings_speed is not None:
+                # no trusted current: the slow speed alone against its siblings' band (module doc, "The
+                # speed alone"), as the tree reads the speed alone (depth 1); none without their reference
+                with np.errstate(invalid="ignore"):
+                    only = np.where(
+                        siblings_speed < -1.0,
+                        Code.SLOW,
+                        np.where(siblings_speed > 1.0, Code.FAST, Code.NORMAL),
+                    )
+                slow_state[alone] = only[alone]
+                slow_depth[alone] = 1.0
             if frame.z_torque is not None:
                 # friction and a lighter propeller are the torque balance's where it judges them
                 # (rules/equations.py): there the slow look names an open transistor only
@@ -233,7 +269,9 @@ class SlowLook(Rule):
                         np.where(narrower, n * self.fraction * share, own)
                         for narrower, share, own in zip(narrowed, (share_speed, share_current), in_bands)
                     ]
-                toward = direction_evidence(in_bands[0], in_bands[1], frame.current_trusted(), n)
+                if alone is not None and siblings_speed is not None:  # the speed alone: in σ of its siblings'
+                    in_bands[0] = np.where(alone, n * self.fraction * siblings_speed, in_bands[0])
+                toward = direction_evidence(in_bands[0], in_bands[1], trusted, n)
             named_toward = evidence_toward(toward, slow_state)
         else:
             slow_state, slow_depth = agreeing_departures(
@@ -257,11 +295,13 @@ class SlowLook(Rule):
         slow: SlowAverages,
         share_speed: NDArray[np.float64],
         share_current: NDArray[np.float64],
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], list[NDArray[np.bool_]]]:
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], list[NDArray[np.bool_]], NDArray[np.float64] | None]:
         """The slow departures' shares of the narrower of their own band and the band the siblings give
         (module doc, "The slow look as its siblings run"): ``noise_bands · fraction · m`` times the root of
         the siblings' median mean square, at least as many of the motor's quiet slow σ; each share as it
-        was where the siblings give none. Also where the siblings' band was the narrower (speed, current)."""
+        was where the siblings give none. Also where the siblings' band was the narrower (speed, current),
+        and the speed's share of the siblings' band itself where they give one (NaN elsewhere; None: the
+        frame has no siblings' mean squares of the speed), which the speed alone is judged in."""
         rows = frame.noise_as_rows()
         offset_speed, offset_current, quiet_speed, quiet_current = rows.slow_quiet()
         reach = frame.profile.noise_bands * self.fraction * frame.profile.slow_siblings
@@ -274,7 +314,9 @@ class SlowLook(Rule):
         if frame.since_step_s is not None:
             with np.errstate(invalid="ignore"):
                 within &= ~(frame.since_step_s < slow.settle_s)
-        out, narrower = [], []
+        out: list[NDArray[np.float64]] = []
+        narrower: list[NDArray[np.bool_]] = []
+        given: list[NDArray[np.float64] | None] = []  # each quantity's share of the siblings' band itself
         for share, deviation, offset, quiet, siblings in (
             (share_speed, slow.delta_omega_rad_s, offset_speed, quiet_speed, frame.siblings_slow_ms_speed),
             (
@@ -288,6 +330,7 @@ class SlowLook(Rule):
             if siblings is None:
                 out.append(share)
                 narrower.append(np.zeros(share.shape, dtype=bool))
+                given.append(None)
                 continue
             with np.errstate(divide="ignore", invalid="ignore"):
                 # (np.maximum, not fmax: where the siblings give no reference, NaN, the motor's own band)
@@ -298,4 +341,5 @@ class SlowLook(Rule):
                 deeper = within & np.isfinite(theirs) & ~(np.abs(theirs) <= np.abs(share))
             out.append(np.where(deeper, theirs, share))
             narrower.append(deeper)
-        return out[0], out[1], narrower
+            given.append(np.where(within & np.isfinite(theirs), theirs, np.nan))
+        return out[0], out[1], narrower, given[0]
