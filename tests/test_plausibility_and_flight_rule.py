@@ -327,3 +327,38 @@ def test_a_pairing_per_sample_is_the_one_number_where_all_are_equal(paper_motor)
     assert ((a["sensor_flags"] & SensorIssue.CURRENT_UNPAIRED) != 0).any()  # the guard acts
     for name in ("state", "announced", "steady", "sensor_flags", "pairing_error_rad_s", "omega_model_rad_s"):
         np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+
+
+def test_the_pairing_guard_keeps_a_current_further_off_than_the_pairing_could_move_it(tmp_path) -> None:
+    """The demo's flight (``flight/healthy_calm``, its seed), 30 s, motor 3's propeller damaged at 20 s,
+    logged as a .tlog streaming ESC telemetry and commands at 100 Hz, the rate the simulated vehicle sends
+    the agent. The autopilot answers the lost thrust by driving motor 3's command up; each ESC packet is
+    paired with a command up to a message interval away, and the pairing error then exceeds the `flight`
+    profile's speed band. The current, far below the model, departs further than the pairing could move it
+    (diagnosis/rules/pairing.py, "A departure beyond the pairing's reach"), so it is kept and F3.1 is
+    announced 0.16 s after the damage; before, the guard set it aside, the motor read FAST on its speed
+    alone, and F3.1 came 0.44 s after. No other motor is announced anything."""
+    import dataclasses
+
+    from mav_motor_health.config import load_motor_params, load_profile
+    from mav_motor_health.diagnosis import MotorState, diagnose
+    from mav_motor_health.sim.engine import run_scenario
+    from mav_motor_health.sim.faults import FaultSpec
+    from mav_motor_health.sim.scenario import load_scenario
+    from mav_motor_health.sim.writers import write_record
+    from mav_motor_health.telemetry import sources
+
+    scenario = dataclasses.replace(
+        load_scenario("flight/healthy_calm"),
+        duration_s=30.0,
+        esc_stream_hz=100.0,
+        log_hz=100.0,
+        faults=(FaultSpec("F3.1", 3, 20.0),),
+    )
+    log, _ = write_record(run_scenario(scenario), tmp_path / "demo.tlog")
+    result = diagnose(sources.read(log), load_motor_params(), load_profile("flight"))
+    motor, announced, t = result["motor"], result["announced"], result["time_s"]
+    assert (announced[motor != 3] == MotorState.NORMAL).all()
+    first = t[(motor == 3) & (announced == MotorState.F3_1)].min()
+    assert 20.0 < first < 20.25, first
+    assert (announced[(motor == 3) & (t < 20.0)] == MotorState.NORMAL).all()

@@ -36,8 +36,9 @@ def test_the_demo_counts_the_delay_from_the_injection_on_the_agents_clock() -> N
     """Where the simulation fell behind real time before the fault (a machine busy at the start), the
     fault's simulated time after the agent's first state is not when it was injected on the agent's
     clock: the delay is counted from the injection itself. (Once, in a fresh-clone CI run, the count from
-    the simulated time said 1.23 s where the announcement typically comes 0.4 s after the injection; a
-    slip of the simulation before the fault is a way it can, and the cause was not proven.)"""
+    the simulated time said 1.23 s where the announcement then typically came 0.4 s after the injection
+    (0.14–0.17 s since 6 December); a slip of the simulation before the fault is a way it can, and the
+    cause was not proven.)"""
     from types import SimpleNamespace
 
     from mav_motor_health.agent.demo import FaultPlan, demo_summary
