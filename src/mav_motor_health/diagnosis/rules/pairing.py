@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ...model.balance import linearised_slopes
 from ..pairing import PairingCarry, pairing_error_rows
 from ..plausibility import SensorIssue
 from .base import Frame, Rule
@@ -86,14 +87,15 @@ class PairingLimits(Rule):
         plaus = self.profile.plausibility
         speed_band = np.asarray(frame.speed_band_rad_s, dtype=float)
         unpaired = error > plaus.pairing_current_share * speed_band
-        beyond = self._beyond_the_pairing(frame, error)
-        if beyond is not None:
-            unpaired = unpaired & ~beyond
         speed_only_band = self.profile.speed_only_band(frame.speed_band_rad_s, frame.omega_model_rad_s)
         doubtful = error > plaus.pairing_speed_share * speed_only_band
         measured = self._measured(frame)
         if measured is not None:
             unpaired, doubtful = unpaired & ~measured, doubtful & ~measured
+        if unpaired.any():  # (most calls set nothing aside: no more work there)
+            beyond = self._beyond_the_pairing(frame, error)
+            if beyond is not None:
+                unpaired = unpaired & ~beyond
         frame.sensor_flags = np.where(
             unpaired, frame.sensor_flags | int(SensorIssue.CURRENT_UNPAIRED), frame.sensor_flags
         ).astype(np.int16)
@@ -109,9 +111,8 @@ class PairingLimits(Rule):
         judged, model = frame.current_judged_a, frame.current_model_a
         if judged is None or model is None:
             return None
-        p = frame.params
-        w = np.abs(np.asarray(frame.omega_model_rad_s, dtype=float))
-        slope = (p.k * p.C_p * w ** (p.k - 1.0) + p.B) / p.k_t
+        g, _ = linearised_slopes(frame.params, frame.omega_model_rad_s)
+        slope = g / frame.params.k_t
         departure = np.asarray(judged, dtype=float) - np.asarray(model, dtype=float)
         band = np.where(departure < 0, frame.current_band_below_a, frame.current_band_a)
         with np.errstate(invalid="ignore"):

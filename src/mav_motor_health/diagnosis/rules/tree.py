@@ -316,21 +316,28 @@ class SlowLook(Rule):
                 within &= ~(frame.since_step_s < slow.settle_s)
         out: list[NDArray[np.float64]] = []
         narrower: list[NDArray[np.bool_]] = []
-        given: list[NDArray[np.float64] | None] = []  # each quantity's share of the siblings' band itself
-        for share, deviation, offset, quiet, siblings in (
-            (share_speed, slow.delta_omega_rad_s, offset_speed, quiet_speed, frame.siblings_slow_ms_speed),
+        siblings_speed = None  # the speed's share of the siblings' band itself
+        for q, (share, deviation, offset, quiet, siblings) in enumerate(
             (
-                share_current,
-                slow.delta_current_a,
-                offset_current,
-                quiet_current,
-                frame.siblings_slow_ms_current,
-            ),
+                (
+                    share_speed,
+                    slow.delta_omega_rad_s,
+                    offset_speed,
+                    quiet_speed,
+                    frame.siblings_slow_ms_speed,
+                ),
+                (
+                    share_current,
+                    slow.delta_current_a,
+                    offset_current,
+                    quiet_current,
+                    frame.siblings_slow_ms_current,
+                ),
+            )
         ):
             if siblings is None:
                 out.append(share)
                 narrower.append(np.zeros(share.shape, dtype=bool))
-                given.append(None)
                 continue
             with np.errstate(divide="ignore", invalid="ignore"):
                 # (np.maximum, not fmax: where the siblings give no reference, NaN, the motor's own band)
@@ -341,5 +348,6 @@ class SlowLook(Rule):
                 deeper = within & np.isfinite(theirs) & ~(np.abs(theirs) <= np.abs(share))
             out.append(np.where(deeper, theirs, share))
             narrower.append(deeper)
-            given.append(np.where(within & np.isfinite(theirs), theirs, np.nan))
-        return out[0], out[1], narrower, given[0]
+            if q == 0:
+                siblings_speed = np.where(within & np.isfinite(theirs), theirs, np.nan)
+        return out[0], out[1], narrower, siblings_speed
