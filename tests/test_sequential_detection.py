@@ -472,3 +472,23 @@ def test_the_closed_form_sums_and_alarms_are_the_step_by_step_cusums() -> None:
                 assert sums[d, r, n] == pytest.approx(s, abs=1e-9)
                 assert alarms[d, r, n] == alarm, (d, r, n)
     assert alarms.any() and not alarms.all() and (sums == 0).any()
+
+
+def test_an_unknown_departure_as_brief_as_a_logged_commands_gap_is_no_alarm() -> None:
+    """Faster with more current (UNKNOWN: none of the five faults; a command the log missed between two
+    commands logged at 10 Hz, at a translation's braking) for 0.14 s at 141 Hz, 12-16 σ: an alarm without
+    the floor, none with it; lasting, it is still named, after one observation (2τ)."""
+    loose = SequentialRule(false_alarms_per_100h=1.0, reference_sigmas=2.5)
+    floored = dataclasses.replace(loose, min_observations=1.0)
+    assert MotorState.UNKNOWN in CAPPED_DIRECTIONS
+    dt = 1 / 141.0
+    rng = np.random.default_rng(20)
+    n, onset = int(6.0 / dt), int(3.0 / dt)
+    z = 0.5 * rng.standard_normal((2, n))
+    brief = np.s_[onset : onset + int(0.14 / dt)]
+    z[0, brief], z[1, brief] = 16.0, 12.0
+    assert (run_at(loose, z, dt) == MotorState.UNKNOWN).any()
+    assert not run_at(floored, z, dt).any()
+    z[:, onset:] = 0.5 * rng.standard_normal((2, n - onset)) + np.array([[16.0], [12.0]])
+    named = np.flatnonzero(run_at(floored, z, dt) == MotorState.UNKNOWN)
+    assert named.size and 2 * TAU_S - dt <= (named[0] - onset) * dt <= 2 * 2 * TAU_S

@@ -115,3 +115,47 @@ def test_esc_currents_add_up_to_the_battery_current_in_gusty_air():
     settled = t > 5.0
     assert np.all(np.abs(ratio[settled] - 1.0) < 0.1), (ratio[settled].min(), ratio[settled].max())
     assert not CurrentSumCheck(PlausibilityRule(), motor).update(t, motor, esc, battery)[settled].any()
+
+
+def test_the_mixer_gives_the_torques_the_rate_loops_ask_for_once():
+    # Nothing saturated: the motors' thrusts put through the allocation give back the roll, pitch and yaw
+    # torques asked. (Until 6 December 2026 the mixer added the yaw a second time, after it had fitted the
+    # collective to the motors' range with one share: twice the torque asked, and beyond the range near
+    # its top, where the clipping took roll and pitch authority; a heavy vehicle flipped, below.)
+    from mav_motor_health.config import load_motor_params
+    from mav_motor_health.sim.control import FlightController
+    from mav_motor_health.sim.vehicle import RigidBody
+
+    frame = Airframe()
+    ctrl = FlightController(frame, load_motor_params("paper_x2212"))
+    body = RigidBody(frame)
+    ctrl.hold(body)
+    body.rates = [0.05, -0.04, 0.3]  # turning: every rate loop asks for a torque
+    body.att = [0.02, -0.01, 0.0]
+    ctrl.yaw_sp = 0.05
+    duty = ctrl.update(body, 12.0, 0.01)
+    assert not ctrl.saturated.any() and np.all(duty > ctrl.g.spin_min)
+    thrust = frame.thrust_coeff * ctrl_speeds(ctrl, duty, 12.0) ** 2
+    got = ctrl._alloc @ thrust
+    assert abs(ctrl.torque_demand_nm[2]) > 0.01  # a yaw torque was asked for
+    np.testing.assert_allclose(got[1:], ctrl.torque_demand_nm, rtol=1e-6, atol=1e-9)
+
+
+def ctrl_speeds(ctrl, duty, bus_voltage_v):
+    """The steady speed of each motor at its duty (what the mixer's thrust linearisation inverts)."""
+    from mav_motor_health.model.equations import steady_state
+
+    return steady_state(ctrl.motor, duty * bus_voltage_v).omega_rad_s
+
+
+def test_a_heavy_world_flies_its_whole_plan_upright():
+    # Held-out world 1009 (23.8 kg, yaw inertia 10.9 kg m^2): with the yaw added twice, its yaw loop
+    # oscillated through the translation and, when the turn began at 31 s on top of the braking, the
+    # vehicle flipped and lay on the ground for the rest of its identification flight with three motors
+    # at full command (the flight `fit` then identified from). It flies the plan upright now.
+    from mav_motor_health.evaluation.worlds import world_scenario
+
+    rec = run_scenario(world_scenario(1009, duration_s=45.0), collect_esc=False)
+    tilt = max(max(abs(v.roll_rad), abs(v.pitch_rad)) for v in rec.vehicle)
+    assert tilt < 0.9  # the lean limit (30 degrees) and some overshoot, never upside down
+    assert min(v.alt_m for v in rec.vehicle if v.time_s > 5.0) > 5.0

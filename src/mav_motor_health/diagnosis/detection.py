@@ -60,14 +60,18 @@ grows as before, at about half the pace where its samples straddle the band.
 **Outliers.** The threshold is designed under Gaussian noise, where a sample 10 σ off never happens;
 telemetry has heavier tails (a command that dipped between two logged commands, at a manoeuvre's start,
 leaves one or two samples that far off). With ``min_observations`` m > 0 each sample's evidence for a
-*lasting* direction (:data:`CAPPED_DIRECTIONS`: F1.1, F4.1, SLOW) counts at most ``k + h/m``: an alarm
-there needs at least m independent observations' worth of evidence (m·2τ of time at any telemetry
+*lasting* direction (:data:`CAPPED_DIRECTIONS`: F1.1, F4.1, SLOW, UNKNOWN) counts at most ``k + h/m``: an
+alarm there needs at least m independent observations' worth of evidence (m·2τ of time at any telemetry
 rate), and a lone outlier, at 10 Hz a third of an observation, adds at most a third of h/m. Those are
 the faults that leave the motor turning inside the judged range (more friction, less torque: it settles
 at a new speed and keeps giving evidence), so a deep one is still named, after m observations rather
-than in a few samples. The other directions are not capped: a lost propeller's motor (F3.1, or FAST
-without a current) runs away and leaves the judged range within one observation, and a cap there let
-only a later rule name it, seconds later (docs/flight.md, "A cap on each sample's evidence, measured").
+than in a few samples; and UNKNOWN, faster with the current not below, which none of the five faults
+gives but a command the log did not show does (at a translation's braking, a healthy motor driven 90
+rad/s above the logged command's model for a tenth of a second, between two commands logged at 10 Hz:
+docs/flight.md, "A yaw counted twice, and an unknown departure as brief as a logged command's gap"). The
+other directions are not capped: a lost propeller's motor (F3.1, or FAST without a current) runs away
+and leaves the judged range within one observation, and a cap there let only a later rule name it,
+seconds later (docs/flight.md, "A cap on each sample's evidence, measured").
 Below the cap nothing changes, and the design's false-alarm rate under its own noise model can only
 fall.
 
@@ -139,8 +143,9 @@ DIRECTIONS = (
     MotorState.FAST,
 )
 #: directions whose fault leaves the motor turning inside the judged range (it settles at a new speed
-#: and keeps giving evidence): the ones ``min_observations`` caps (module doc, "Outliers")
-CAPPED_DIRECTIONS = (MotorState.F1_1, MotorState.F4_1, MotorState.SLOW)
+#: and keeps giving evidence), and UNKNOWN (no fault's, a command the log missed gives it): the ones
+#: ``min_observations`` caps (module doc, "Outliers")
+CAPPED_DIRECTIONS = (MotorState.F1_1, MotorState.F4_1, MotorState.SLOW, MotorState.UNKNOWN)
 #: directions open at once to a motor with a trusted current (F1.1, F4.1, F3.1, UNKNOWN), or without
 DIRECTIONS_AT_ONCE = 4
 #: motors the designed rate covers (an octocopter; fewer motors: fewer false alarms)
