@@ -41,11 +41,8 @@ class Gains:
     rate_p: float = 9.0
     rate_i: float = 4.0
     rate_d: float = 0.12
-    #: the yaw rate loop's gains: until 6 December 2026 the mixer added the yaw torque twice (3.0 and 0.5
-    #: asked, twice that given); doubled when that was mended, so that the loop runs as it did wherever
-    #: the mixer has room (docs/simulator.md, "The mixer")
-    yaw_rate_p: float = 6.0
-    yaw_rate_i: float = 1.0
+    yaw_rate_p: float = 3.0
+    yaw_rate_i: float = 0.5
     max_lean_rad: float = math.radians(30.0)
     max_speed_m_s: float = 8.0
     spin_min: float = 0.12
@@ -79,8 +76,6 @@ class FlightController:
         self.saturated = np.zeros(frame.n_motors, dtype=bool)
         self.duty = np.zeros(frame.n_motors)
         self.att_sp = [0.0, 0.0, 0.0]
-        #: the roll, pitch and yaw torques the rate loops asked for at the last update [N·m]
-        self.torque_demand_nm = (0.0, 0.0, 0.0)
         self.gyro_noise_rad_s = 0.0
         self.rng: np.random.Generator | None = None
         self._max_thrust_cache: dict[int, float] = {}
@@ -158,7 +153,6 @@ class FlightController:
             d_term = 0.0 if k == 2 else -g.rate_d * (body.rates[k] - self._last_rates[k]) / dt
             torques[k] = f.inertia_kg_m2[k] * (kp * err + self._rate_i[k] + d_term)
         self._last_rates = list(body.rates)
-        self.torque_demand_nm = (torques[0], torques[1], torques[2])
         # Attitude before altitude (as ArduPilot's output_armed_stabilizing): fit roll and pitch into
         # the motors' range first, then yaw as far as there is room, then the collective.
         t_max = self.max_thrust_n(bus_voltage_v)
@@ -181,9 +175,8 @@ class FlightController:
         lower = float(np.max(-rpy[lifts] / u))
         upper = float(np.min((t_max - rpy[lifts]) / u))
         c = 0.5 * (lower + upper) if lower > upper else min(max(collective, lower), upper)
-        # rpy holds the yaw that fitted (none where no share of it did): added once, as the collective's
-        # limits above were worked out with it
-        demand = unit * c + rpy
+        base = unit * c + rpy
+        demand = base + scale * yaw
         if g.loss_balance > 0:
             share = demand / t_max
             if self._demand_filt is None:
@@ -193,9 +186,6 @@ class FlightController:
                     dt / (BALANCE_TAU_S + dt)
                 )
         duty = self.duty_for_thrust(demand, bus_voltage_v)
-        # a motor the mixer put at the top of its range is saturated too: its thrust is t_max, worked out
-        # on a 50 mV grid of the bus voltage, whose duty comes out a hair either side of full command
-        self.saturated |= demand >= t_max * (1.0 - 1e-9)
         # A lost motor is still asked for everything: its command stays saturated.
         return np.where(self.lost, g.spin_max, duty)
 
