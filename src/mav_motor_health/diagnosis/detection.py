@@ -68,10 +68,10 @@ at a new speed and keeps giving evidence), so a deep one is still named, after m
 than in a few samples; and UNKNOWN, faster with the current not below, which none of the five faults
 gives but a command the log did not show does (at a translation's braking, a healthy motor driven 90
 rad/s above the logged command's model for a tenth of a second, between two commands logged at 10 Hz:
-docs/flight.md, "UNKNOWN waits for one observation"). The
-other directions are not capped: a lost propeller's motor (F3.1, or FAST without a current) runs away
-and leaves the judged range within one observation, and a cap there let only a later rule name it,
-seconds later (docs/flight.md, "A cap on each sample's evidence, measured").
+docs/flight.md, "UNKNOWN waits for one observation"). The other directions are not capped: a lost
+propeller's motor (F3.1, or FAST without a current) runs away and leaves the judged range within one
+observation, and a cap there let only a later rule name it, seconds later (docs/flight.md, "A cap on
+each sample's evidence, measured").
 Below the cap nothing changes, and the design's false-alarm rate under its own noise model can only
 fall.
 
