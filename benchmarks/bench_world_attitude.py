@@ -1,11 +1,12 @@
-"""Do the randomised worlds' simulated vehicles fly their plans upright? (docs/simulator.md, "The mixer")
+"""Do the randomised worlds' simulated vehicles fly their plans upright? (docs/simulator.md, "Known problem")
 
     PYTHONPATH=src python benchmarks/bench_world_attitude.py --first 1000 --count 40 --jobs 2
     PYTHONPATH=src python benchmarks/bench_world_attitude.py --first 0 --count 40 --jobs 2
 
-For each world, the flights the world benchmarks fly: its 150-s identification flight (its own air and
-seed, what ``fit`` identifies the vehicle from) and its first 60-s healthy flight at each turbulence level
-(``evaluation.worlds.world_flights``, as ``bench_flight_worlds.py`` flies them), without the ESC reports.
+For each world: its 150-s identification flight (its own air and seed, what ``fit`` identifies the
+vehicle from) and a 60-s healthy test flight at each turbulence level (``evaluation.worlds.world_flights``
+with one healthy flight per level, flown by ``fly_flight`` as the world benchmarks fly theirs), without
+the ESC reports.
 Printed per flight: the largest roll or pitch [rad] and the first time after take-off the vehicle lay on
 the ground (none: it never did). A flight that tips beyond 1.2 rad or touches the ground is marked
 ``FELL``: the diagnosis and the identification of that world would be scored on a vehicle lying on the
@@ -16,7 +17,6 @@ largest tilt of the others.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 import time
 import warnings
@@ -26,8 +26,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from mav_motor_health.evaluation.worlds import world_flights, world_scenario  # noqa: E402
-from mav_motor_health.sim.engine import run_scenario  # noqa: E402
+from mav_motor_health.evaluation.worlds import fly_flight, fly_world, world_flights  # noqa: E402
 
 LEVELS = ("calm", "moderate", "gusty")
 #: tilt beyond which a flight counts as fallen [rad] (the lean limit is 30°, 0.52 rad, and a
@@ -42,16 +41,10 @@ def fly(args: tuple[int, str]) -> tuple[int, str, float, float | None]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         if kind == "identification":
-            scenario = world_scenario(world, duration_s=150.0)
+            record = fly_world(world, duration_s=150.0, collect_esc=False)
         else:
             flight = world_flights(world, duration_s=60.0, healthy_flights=1, levels=(kind,), faults=())[0]
-            scenario = dataclasses.replace(
-                world_scenario(world, duration_s=flight.duration_s),
-                seed=flight.seed,
-                faults=tuple(flight.faults()),
-                world_turbulence=flight.turbulence,
-            )
-        record = run_scenario(scenario, collect_esc=False)
+            record = fly_flight(flight, collect_esc=False)
     tilt = max(max(abs(v.roll_rad), abs(v.pitch_rad)) for v in record.vehicle)
     ground = [v.time_s for v in record.vehicle if v.time_s > 5.0 and v.alt_m <= 0.05]
     return world, kind, tilt, (ground[0] if ground else None)

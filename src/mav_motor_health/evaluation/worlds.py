@@ -178,10 +178,12 @@ def fly_world(
     turbulence: str | None = None,
     faults: Iterable[FaultSpec] = (),
     name: str | None = None,
+    collect_esc: bool = True,
 ) -> SimRecord:
     """A flight of ``world``'s own manoeuvre plan (:func:`~mav_motor_health.sim.scenario.world_scenario`)
     with noise ``seed`` (default the world's), ``faults``, and at ``turbulence`` (default the world's
-    own level). At the world's own level and seed this is ``run_scenario(world_scenario(world))``."""
+    own level). At the world's own level and seed this is ``run_scenario(world_scenario(world))``.
+    ``collect_esc`` False: the vehicle's record only, without the ESC reports."""
     scenario = world_scenario(world, duration_s=duration_s)
     scenario = dataclasses.replace(
         scenario,
@@ -190,11 +192,12 @@ def fly_world(
         faults=tuple(faults),
         world_turbulence=turbulence,
     )
-    return run_scenario(scenario)
+    return run_scenario(scenario, collect_esc=collect_esc)
 
 
-def fly_flight(flight: WorldFlight) -> SimRecord:
-    """One test flight of :func:`world_flights` flown (its world, seed, length, air and fault)."""
+def fly_flight(flight: WorldFlight, *, collect_esc: bool = True) -> SimRecord:
+    """One test flight of :func:`world_flights` flown (its world, seed, length, air and fault);
+    ``collect_esc`` as :func:`fly_world`."""
     return fly_world(
         flight.world,
         seed=flight.seed,
@@ -202,6 +205,7 @@ def fly_flight(flight: WorldFlight) -> SimRecord:
         turbulence=flight.turbulence,
         faults=flight.faults(),
         name=flight.name,
+        collect_esc=collect_esc,
     )
 
 
