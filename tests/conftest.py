@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
@@ -11,6 +12,7 @@ from mav_motor_health.diagnosis.profile import ThresholdProfile
 from mav_motor_health.model.params import MotorParams
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # shared helpers (loopback.py) for every folder
 #: ``shared/real_logs`` beside the clone (CI), or beside any folder above it (a git worktree)
 SHARED_LOGS = next(
     (p / "shared" / "real_logs" for p in REPO.parents if (p / "shared" / "real_logs").is_dir()),

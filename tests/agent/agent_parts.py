@@ -20,6 +20,7 @@ from typing import Any
 import paho.mqtt.client as paho
 import pytest
 
+from loopback import listen_port
 from mav_motor_health.publish.mqtt import EventDedupe
 
 MOSQUITTO = "/usr/sbin/mosquitto"
@@ -45,11 +46,12 @@ def wait_for(predicate: Callable[[], Any], timeout_s: float, what: str, poll_s: 
 
 
 class Broker:
-    """A Mosquitto process on a free port, with persistence so a restart keeps sessions."""
+    """A Mosquitto process on a free port below the ephemeral range (``loopback.listen_port``: the tests
+    restart it on the same port), with persistence so a restart keeps sessions."""
 
     def __init__(self, folder: Path, port: int | None = None) -> None:
         self.folder = folder
-        self.port = port or free_port()
+        self.port = port or listen_port()
         self.proc: subprocess.Popen[bytes] | None = None
         self.conf = folder / "mosquitto.conf"
         self.conf.write_text(
@@ -67,6 +69,9 @@ class Broker:
         )
         deadline = time.monotonic() + 10
         while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                log = (self.folder / "log").read_text(errors="replace")[-2000:]
+                raise RuntimeError(f"mosquitto exited ({self.proc.returncode}) on port {self.port}: {log}")
             with (
                 contextlib.suppress(OSError),
                 socket.create_connection(("127.0.0.1", self.port), timeout=0.2),

@@ -19,6 +19,7 @@ from typing import Any
 import paho.mqtt.client as mqtt
 import pytest
 
+from loopback import listen_port
 from mav_motor_health.publish.web import DisplayConfig, DisplayServer
 
 MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
@@ -75,7 +76,10 @@ def start_mosquitto(
 ) -> tuple[Broker, subprocess.Popen[bytes]]:
     """mosquitto 2.x with a plain MQTT and a WebSocket listener on free loopback ports (or ``ports``)."""
     workdir.mkdir(parents=True, exist_ok=True)
-    mqtt_port, ws_port = ports or (free_port(), free_port())
+    mqtt_port, ws_port = ports or (
+        listen_port(),
+        listen_port(),
+    )  # restarted on them: below the ephemeral range
     conf = workdir / "mosquitto.conf"
     # As root mosquitto drops to user "mosquitto", which cannot read files in pytest's private tmp.
     run_as = "user root\n" if os.geteuid() == 0 else ""
