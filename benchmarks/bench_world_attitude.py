@@ -1,4 +1,4 @@
-"""Do the randomised worlds' simulated vehicles fly their plans upright? (docs/simulator.md, "Known problem")
+"""Do the randomised worlds' simulated vehicles fly their plans upright? (docs/simulator.md, "The mixer gives the yaw twice")
 
     PYTHONPATH=src python benchmarks/bench_world_attitude.py --first 1000 --count 40 --jobs 2
     PYTHONPATH=src python benchmarks/bench_world_attitude.py --first 0 --count 40 --jobs 2

@@ -240,6 +240,24 @@ def test_the_sequential_test_reads_friction_and_a_lighter_propeller_in_the_torqu
     assert before[DIRECTIONS.index(MotorState.F1_1), 0] == DIRECTIONS.index(MotorState.F1_1) * 4
 
 
+def test_a_torque_shortfall_on_a_current_read_above_its_band_is_no_lighter_propeller() -> None:
+    # Held-out world 1005, a healthy motor in calm air: a command step up between two commands logged at
+    # 10 Hz drove it 67 rad/s above the logged command's model on 12.1 A against 4.1 A modelled (band
+    # 2.4 A); the balance, its current low-passed, read the acceleration as load gone, and three such
+    # samples announced F3.1 (uncapped). A lighter propeller draws less current, never more.
+    z_torque = np.array([-5.0, -5.0, -5.0, -5.0])
+    z_current_read = np.array([14.9, 4.5, 4.6, np.nan])  # in sigma; the band is 4.5 sigma
+    trusted = np.ones(4, dtype=bool)
+    before = np.ones((len(DIRECTIONS), 4))
+    out = equation_evidence(z_torque, trusted, before, z_current_read, 4.5)
+    np.testing.assert_array_equal(out[DIRECTIONS.index(MotorState.F3_1)], [0.0, 5.0, 0.0, 5.0])
+    # friction is read as before, and without the reading nothing changes
+    np.testing.assert_array_equal(out[DIRECTIONS.index(MotorState.F1_1)], [0.0, 0.0, 0.0, 0.0])
+    np.testing.assert_array_equal(
+        equation_evidence(z_torque, trusted, before)[DIRECTIONS.index(MotorState.F3_1)], [5.0] * 4
+    )
+
+
 def test_a_current_every_motor_gains_alike_is_judged_against_the_siblings_not_named_friction(
     motor, flights, noise
 ) -> None:

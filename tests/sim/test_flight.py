@@ -115,3 +115,69 @@ def test_esc_currents_add_up_to_the_battery_current_in_gusty_air():
     settled = t > 5.0
     assert np.all(np.abs(ratio[settled] - 1.0) < 0.1), (ratio[settled].min(), ratio[settled].max())
     assert not CurrentSumCheck(PlausibilityRule(), motor).update(t, motor, esc, battery)[settled].any()
+
+
+def mixer_at(collective_push_m_s: float):
+    """A controller over the paper's motor, asked at once for a roll, a pitch and a yaw torque and for a
+    collective set by a vertical speed error (positive: sinking, more thrust asked)."""
+    from mav_motor_health.config import load_motor_params
+    from mav_motor_health.sim.control import FlightController
+    from mav_motor_health.sim.vehicle import RigidBody
+
+    frame = Airframe()
+    ctrl = FlightController(frame, load_motor_params("paper_x2212"))
+    body = RigidBody(frame)
+    ctrl.hold(body)
+    body.rates = [0.05, -0.04, 0.3]  # turning: every rate loop asks for a torque
+    body.att = [0.02, -0.01, 0.0]
+    body.vel = [0.0, 0.0, collective_push_m_s]
+    ctrl.yaw_sp = 0.05
+    return frame, ctrl, body
+
+
+def given_torques(frame, ctrl, duty, bus_voltage_v):
+    """Roll, pitch, yaw torques the motors give at ``duty`` (their steady speeds through the allocation)."""
+    from mav_motor_health.model.equations import steady_state
+
+    omega = steady_state(ctrl.motor, duty * bus_voltage_v).omega_rad_s
+    return (ctrl._alloc @ (frame.thrust_coeff * omega**2))[1:]
+
+
+def test_the_mixer_gives_twice_the_yaw_torque_asked_where_it_has_room():
+    # Every simulated flight has flown with the yaw share added twice: the yaw rate loop's gains are in
+    # effect twice yaw_rate_p and yaw_rate_i (docs/simulator.md, "The mixer"). Roll and pitch as asked.
+    frame, ctrl, body = mixer_at(0.0)
+    duty = ctrl.update(body, 12.0, 0.01)
+    assert not ctrl.saturated.any() and np.all(duty > ctrl.g.spin_min)
+    roll, pitch, yaw = given_torques(frame, ctrl, duty, 12.0)
+    asked = ctrl.torque_demand_nm
+    assert abs(asked[2]) > 0.01
+    np.testing.assert_allclose([roll, pitch, yaw], [asked[0], asked[1], 2.0 * asked[2]], rtol=1e-6, atol=1e-9)
+
+
+def test_near_the_top_of_the_range_the_yaw_gives_way_to_roll_and_pitch():
+    # Sinking fast: the collective asked is more than the motors have. Both yaw shares fit in the range
+    # (until 7 December 2026 only the first did: the second went beyond the top, was clipped, and took
+    # roll and pitch authority with it, and heavy worlds fell, below): no motor is asked beyond its
+    # range, roll and pitch are given as asked and the yaw as far as there is room.
+    frame, ctrl, body = mixer_at(6.0)
+    duty = ctrl.update(body, 12.0, 0.01)
+    roll, pitch, yaw = given_torques(frame, ctrl, duty, 12.0)
+    asked = ctrl.torque_demand_nm
+    assert ctrl.saturated.any()  # a motor at the top of its range
+    assert np.all(duty <= ctrl.g.spin_max)
+    np.testing.assert_allclose([roll, pitch], asked[:2], rtol=1e-6, atol=1e-9)
+    assert 0.0 <= yaw / asked[2] <= 2.0 + 1e-9
+
+
+def test_a_heavy_world_flies_its_whole_plan_upright():
+    # Held-out world 1009 (23.8 kg, yaw inertia 10.9 kg m^2): with the second yaw share clipped near the
+    # top of the range, the vehicle flipped when the turn began at 31 s on top of a translation's braking
+    # and lay on the ground for the rest of its identification flight with three motors at full command
+    # (the flight `fit` then identified it from). It flies the plan upright now.
+    from mav_motor_health.evaluation.worlds import world_scenario
+
+    rec = run_scenario(world_scenario(1009, duration_s=45.0), collect_esc=False)
+    tilt = max(max(abs(v.roll_rad), abs(v.pitch_rad)) for v in rec.vehicle)
+    assert tilt < 0.9  # the lean limit (30 degrees) and some overshoot, never upside down
+    assert min(v.alt_m for v in rec.vehicle if v.time_s > 5.0) > 5.0

@@ -413,18 +413,33 @@ def direction_evidence(
 
 
 def equation_evidence(
-    z_torque: NDArray[np.float64], current_trusted: NDArray[np.bool_], evidence: NDArray[np.float64]
+    z_torque: NDArray[np.float64],
+    current_trusted: NDArray[np.bool_],
+    evidence: NDArray[np.float64],
+    z_current: NDArray[np.float64] | None = None,
+    bands_sigmas: float = math.inf,
 ) -> NDArray[np.float64]:
     """The evidence of :func:`direction_evidence` with F1.1 and F3.1 read in the torque balance where it is
     judged (``z_torque`` finite: its departure from the motor's offset in σ of its own noise; module doc,
     "Each fault in its own balance"): F1.1 the torque above the offset, F3.1 below it. Elsewhere, and for
-    every other direction, as ``evidence`` has it."""
+    every other direction, as ``evidence`` has it.
+
+    A lighter propeller draws less current at its command, never more: where the sample's own current
+    reads above its band (``z_current``, the reading's departure from the model in σ of the band, >
+    ``bands_sigmas``: the tree's "above the band") the torque's shortfall is not evidence of F3.1. There
+    it is a command the log did not show (a step up between two logged commands: the motor speeds up on
+    more current than the logged command's model, and the balance, its current low-passed, reads the
+    acceleration as load gone); F3.1, uncapped, was announced from such samples on a healthy motor
+    (docs/flight.md, "The simulator's mixer mended")."""
     judged = current_trusted & np.isfinite(z_torque)
     zt = np.where(judged, z_torque, 0.0)
     out = evidence.copy()
     f11, f31 = DIRECTIONS.index(MotorState.F1_1), DIRECTIONS.index(MotorState.F3_1)
     out[f11] = np.where(judged, np.maximum(zt, 0.0), evidence[f11])  # torque the model lacks: friction
-    out[f31] = np.where(judged, np.maximum(-zt, 0.0), evidence[f31])  # load missing: a lighter propeller
+    lighter = np.maximum(-zt, 0.0)  # load missing: a lighter propeller
+    if z_current is not None:
+        lighter = np.where(nan_to_zero(z_current) > bands_sigmas, 0.0, lighter)
+    out[f31] = np.where(judged, lighter, evidence[f31])
     return out
 
 

@@ -41,6 +41,7 @@ class Gains:
     rate_p: float = 9.0
     rate_i: float = 4.0
     rate_d: float = 0.12
+    #: the yaw rate loop's gains; the mixer gives its torque twice, so in effect 6.0 and 1.0 (update())
     yaw_rate_p: float = 3.0
     yaw_rate_i: float = 0.5
     max_lean_rad: float = math.radians(30.0)
@@ -76,6 +77,8 @@ class FlightController:
         self.saturated = np.zeros(frame.n_motors, dtype=bool)
         self.duty = np.zeros(frame.n_motors)
         self.att_sp = [0.0, 0.0, 0.0]
+        #: the roll, pitch and yaw torques the rate loops asked for at the last update [N·m]
+        self.torque_demand_nm = (0.0, 0.0, 0.0)
         self.gyro_noise_rad_s = 0.0
         self.rng: np.random.Generator | None = None
         self._max_thrust_cache: dict[int, float] = {}
@@ -153,6 +156,7 @@ class FlightController:
             d_term = 0.0 if k == 2 else -g.rate_d * (body.rates[k] - self._last_rates[k]) / dt
             torques[k] = f.inertia_kg_m2[k] * (kp * err + self._rate_i[k] + d_term)
         self._last_rates = list(body.rates)
+        self.torque_demand_nm = (torques[0], torques[1], torques[2])
         # Attitude before altitude (as ArduPilot's output_armed_stabilizing): fit roll and pitch into
         # the motors' range first, then yaw as far as there is room, then the collective.
         t_max = self.max_thrust_n(bus_voltage_v)
@@ -164,16 +168,22 @@ class FlightController:
             rp = rp * (t_max / span)
         # With a motor lost the vehicle gives up its heading (it spins slowly, as real hexacopters do).
         yaw = self.mix_yaw * (0.0 if self.lost.any() else torques[2])
-        rpy = rp
-        for scale in (1.0, 0.5, 0.25, 0.1):
-            trial = rp + scale * yaw
-            if float(trial[working].max() - trial[working].min()) <= t_max:
-                rpy = trial
+        # The yaw share is given twice (``rpy`` holds one, the demand adds the second): the torque given
+        # is twice the rate loop's, i.e. yaw rate gains of twice ``yaw_rate_p`` and ``yaw_rate_i``, as every
+        # simulated flight has flown. Both shares are fitted into the motors' range: until 7 December 2026
+        # only the first was, and near the top of the range the second was clipped and took roll and pitch
+        # authority with it (heavy vehicles fell: docs/simulator.md, "The mixer gives the yaw twice").
+        rpy, full, scale = rp, rp, 0.0
+        for trial_scale in (1.0, 0.5, 0.25, 0.1):
+            trial = rp + trial_scale * yaw
+            trial_full = trial + trial_scale * yaw
+            if float(trial_full[working].max() - trial_full[working].min()) <= t_max:
+                rpy, full, scale = trial, trial_full, trial_scale
                 break
         lifts = working & (unit > 1e-6)  # a motor opposite a lost one may carry no collective at all
         u = unit[lifts]
-        lower = float(np.max(-rpy[lifts] / u))
-        upper = float(np.min((t_max - rpy[lifts]) / u))
+        lower = float(np.max(-full[lifts] / u))
+        upper = float(np.min((t_max - full[lifts]) / u))
         c = 0.5 * (lower + upper) if lower > upper else min(max(collective, lower), upper)
         base = unit * c + rpy
         demand = base + scale * yaw
@@ -186,6 +196,9 @@ class FlightController:
                     dt / (BALANCE_TAU_S + dt)
                 )
         duty = self.duty_for_thrust(demand, bus_voltage_v)
+        # a motor the mixer puts at the top of its range is saturated too: its thrust is t_max, worked out
+        # on a 50 mV grid of the bus voltage, whose duty comes out a hair either side of full command
+        self.saturated |= demand >= t_max * (1.0 - 1e-9)
         # A lost motor is still asked for everything: its command stays saturated.
         return np.where(self.lost, g.spin_max, duty)
 

@@ -61,16 +61,22 @@ class Sequential(Rule):
         alone_band = profile.speed_only_band(speed_band, frame.omega_model_rad_s)
         deviation = frame.omega_judged_rad_s - frame.omega_model_rad_s
         with np.errstate(divide="ignore", invalid="ignore"):
+            current_sigma_a = frame.current_band_a / sigmas
             evidence = direction_evidence(
                 deviation / (speed_band / sigmas),
-                (frame.current_judged_a - frame.current_model_a) / (frame.current_band_a / sigmas),
+                (frame.current_judged_a - frame.current_model_a) / current_sigma_a,
                 frame.current_trusted(),
                 sigmas,
                 z_omega_alone=deviation / (alone_band / sigmas),
             )
         if frame.z_torque is not None:
-            # friction and a lighter propeller in the torque balance, where it is judged (rules/equations.py)
-            evidence = equation_evidence(frame.z_torque, frame.current_trusted(), evidence)
+            # friction and a lighter propeller in the torque balance, where it is judged (rules/equations.py);
+            # not a lighter propeller where the sample's own current reads above its band
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z_current_read = (frame.current_a - frame.current_model_a) / current_sigma_a
+            evidence = equation_evidence(
+                frame.z_torque, frame.current_trusted(), evidence, z_current_read, sigmas
+            )
         # the tree names the fault, the test says when it has lasted: a direction gains only on samples
         # the tree (and the rules after it) named that way; elsewhere its evidence counts at most the
         # reference (no gain, and no more loss than the sample's own departure gives)
