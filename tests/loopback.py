@@ -1,4 +1,4 @@
-"""Loopback ports for the servers the tests start (Mosquitto, MAVProxy, the display).
+"""Loopback ports for the servers the tests stop and start again (the Mosquitto brokers).
 
 A server that a test stops and starts again on the same port must not listen on a port of the kernel's
 ephemeral range: while it is down, any client connecting out of this machine (the agent reconnecting to

@@ -76,10 +76,8 @@ def start_mosquitto(
 ) -> tuple[Broker, subprocess.Popen[bytes]]:
     """mosquitto 2.x with a plain MQTT and a WebSocket listener on free loopback ports (or ``ports``)."""
     workdir.mkdir(parents=True, exist_ok=True)
-    mqtt_port, ws_port = ports or (
-        listen_port(),
-        listen_port(),
-    )  # restarted on them: below the ephemeral range
+    # a test restarts the broker on these ports: below the ephemeral range (tests/loopback.py)
+    mqtt_port, ws_port = ports or (listen_port(), listen_port())
     conf = workdir / "mosquitto.conf"
     # As root mosquitto drops to user "mosquitto", which cannot read files in pytest's private tmp.
     run_as = "user root\n" if os.geteuid() == 0 else ""
