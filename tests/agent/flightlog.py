@@ -161,6 +161,7 @@ def table_from_fields(fields: FlightFields) -> TelemetryTable:
             "esc_temp_c",
             "battery_current_a",
             "pairing_s",
+            "command_age_s",
         )
     }
     time_s = (
@@ -192,4 +193,5 @@ def table_from_fields(fields: FlightFields) -> TelemetryTable:
         # each ESC message carries the ESC's last packet, measured since the motor's message before (a
         # tick: the reader's pairing, telemetry/assemble.py; the command comes with the message: age 0)
         cols["pairing_s"].append(np.diff(time_s, prepend=time_s[0]))
+        cols["command_age_s"].append(np.zeros(time_s.shape))
     return TelemetryTable({k: np.concatenate(v) for k, v in cols.items()}, source="synthetic flight")

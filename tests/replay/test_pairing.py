@@ -147,6 +147,8 @@ def test_a_freshly_paired_sample_has_a_small_pairing_and_a_stale_one_a_large_one
     m1 = tlog.for_motor(1)
     np.testing.assert_allclose(m1["pairing_s"][1:], np.maximum(own.for_motor(1)["pairing_s"][1:], 0.01))
     assert m1["pairing_s"][0] == pytest.approx(0.002)  # its command's age: no message before it
+    # the command's own age is a column of its own (a stall is weighed against it, diagnosis/stall.py)
+    np.testing.assert_allclose(m1["command_age_s"], own.for_motor(1)["pairing_s"], atol=1e-9)
     # a stale row (repeated packet: no speed or current) is a message all the same
     gappy = EscSamples(
         esc.time_s[::2],

@@ -48,7 +48,7 @@ _CORE_COLUMNS = (
 _CORE_INPUTS = BATCH_COLUMNS
 #: Columns a source may leave out (the core then takes the sample as paired with the command of its own
 #: instant, which did not move between samples)
-_OPTIONAL = ("pairing_s", "input_excursion_v")
+_OPTIONAL = ("pairing_s", "input_excursion_v", "command_age_s")
 #: Those a result row repeats from the sample (before the core's columns).
 _ROW_COLUMNS = (
     "time_s",
@@ -141,6 +141,8 @@ class HealthMonitor:
         }
         # each sample's pairing with its command, which the balance rule weighs (None: of its own instant)
         pairing = cols.get("pairing_s")
+        # ... and each one's command's age (a stall against it, diagnosis/stall.py): both as the source gave
+        raw = {"pairing_s": pairing, "command_age_s": cols.get("command_age_s")}
         motors = list(dict.fromkeys(motor.tolist()))  # in the order they first come
         for number in motors:
             if number not in self.status:
@@ -184,7 +186,7 @@ class HealthMonitor:
                 return out
 
             inputs = {
-                name: laid_out(calibrated.get(column) if column != "pairing_s" else pairing)
+                name: laid_out(raw[column] if column in raw else calibrated.get(column))
                 for name, column in _CORE_INPUTS.items()
             }
             inputs["extra_flags"] = laid_out(sum_flags, 0)
@@ -204,6 +206,7 @@ class HealthMonitor:
                     sensor_current_a=arrays["esc_current_a"],
                     extra_flags=sum_flags[index],
                     pairing_s=None if pairing is None else pairing[index],
+                    command_age_s=None if raw["command_age_s"] is None else raw["command_age_s"][index],
                     input_excursion_v=(
                         calibrated["input_excursion_v"][index] if "input_excursion_v" in calibrated else None
                     ),

@@ -53,6 +53,9 @@ class MotorSample:
     #: how far the motor's command went beyond the two held commands since its sample before [V]
     #: (telemetry/assemble.py, replay's column of the same name); 0: not at all, or not known
     input_excursion_v: float = 0.0
+    #: the age of the command the sample is paired with [s] (telemetry/assemble.py, replay's column of the
+    #: same name); NaN: not known (its pairing then stands in, diagnosis/stall.py)
+    command_age_s: float = math.nan
 
     def row(self) -> dict[str, float]:
         """The sample as a table row (column name → value)."""
@@ -69,6 +72,7 @@ class MotorSample:
             "battery_current_a": self.battery_current_a,
             "pairing_s": self.pairing_s,
             "input_excursion_v": self.input_excursion_v,
+            "command_age_s": self.command_age_s,
         }
 
 

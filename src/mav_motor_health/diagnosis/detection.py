@@ -106,7 +106,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.special import ndtr
 
 from .._arrays import nan_to_zero
@@ -130,6 +130,7 @@ __all__ = [
     "report_credits",
     "sequential_alarms",
     "sequential_alarms_rows",
+    "torque_agrees_with_speed",
     "with_slow_evidence",
 ]
 
@@ -418,6 +419,7 @@ def equation_evidence(
     evidence: NDArray[np.float64],
     z_current: NDArray[np.float64] | None = None,
     bands_sigmas: float = math.inf,
+    speed_deviation: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """The evidence of :func:`direction_evidence` with F1.1 and F3.1 read in the torque balance where it is
     judged (``z_torque`` finite: its departure from the motor's offset in σ of its own noise; module doc,
@@ -430,7 +432,12 @@ def equation_evidence(
     it is a command the log did not show (a step up between two logged commands: the motor speeds up on
     more current than the logged command's model, and the balance, its current low-passed, reads the
     acceleration as load gone); F3.1, uncapped, was announced from such samples on a healthy motor
-    (docs/flight.md, "The simulator's mixer mended")."""
+    (docs/flight.md, "The simulator's mixer mended").
+
+    The paper's directions (``speed_deviation``, the judged speed less the model's; None: not read):
+    friction turns the motor no faster than its model, a lighter propeller no slower, so F1.1's evidence
+    is zeroed where the speed reads above the model and F3.1's where it reads below (as the slow look of
+    the torque asks, :class:`.rules.equations.TorqueSlowLook`; :func:`torque_agrees_with_speed`)."""
     judged = current_trusted & np.isfinite(z_torque)
     zt = np.where(judged, z_torque, 0.0)
     out = evidence.copy()
@@ -439,8 +446,30 @@ def equation_evidence(
     lighter = np.maximum(-zt, 0.0)  # load missing: a lighter propeller
     if z_current is not None:
         lighter = np.where(nan_to_zero(z_current) > bands_sigmas, 0.0, lighter)
+    if speed_deviation is not None:
+        friction = np.where(torque_agrees_with_speed(1.0, speed_deviation), out[f11], 0.0)
+        out[f11] = np.where(judged, friction, evidence[f11])
+        lighter = np.where(torque_agrees_with_speed(-1.0, speed_deviation), lighter, 0.0)
     out[f31] = np.where(judged, lighter, evidence[f31])
     return out
+
+
+def torque_agrees_with_speed(z_torque: ArrayLike, speed_deviation: ArrayLike) -> NDArray[np.bool_]:
+    """Whether a torque departure (its sign: above the model, friction; below, a lighter propeller)
+    agrees with the speed's: friction turns the motor no faster than its model, a lighter propeller no
+    slower (the paper's tree: F1.1 slower, F3.1 faster). A speed not read (NaN) agrees.
+
+    Why the torque alone is not enough: after a motor's failure the others swing between idle and full
+    command, and a healthy motor's torque balance then read a lighter propeller's shortfall while it
+    turned at or below its model speed about as often as above (held-out worlds 1000 and 1012; docs/
+    flight.md, "A torque fault the speed goes against"); under a lighter propeller the motor turned
+    faster than its model on every F3.1 flight probed (held-out worlds 1000-1016, 39 flights: the 10th
+    percentile of the faulty motor's samples named F3.1 lay 0.6 to 118 σ of the speed's noise above).
+    No new number: the sign of the speed's departure."""
+    zt = np.asarray(z_torque, dtype=float)
+    dev = np.asarray(speed_deviation, dtype=float)
+    with np.errstate(invalid="ignore"):
+        return np.where(zt > 0, ~(dev > 0), np.where(zt < 0, ~(dev < 0), True))
 
 
 def sequential_alarms(

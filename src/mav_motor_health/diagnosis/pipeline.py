@@ -108,6 +108,9 @@ class MotorBatch:
     #: how far each sample's input went beyond the two held inputs since the sample before [V] (the
     #: table's ``input_excursion_v``; None: not at all, the command of each sample's own instant)
     input_excursion_v: NDArray[np.float64] | None = None
+    #: each sample's held command's age [s] (the table's ``command_age_s``; None: not known, its pairing
+    #: stands in: diagnosis/stall.py, "A stall the paired command may predate")
+    command_age_s: NDArray[np.float64] | None = None
 
     @classmethod
     def of_columns(cls, columns: Mapping[str, NDArray[Any]], rows: NDArray[np.intp]) -> MotorBatch:
@@ -133,6 +136,7 @@ BATCH_COLUMNS = {
     "sensor_current_a": "esc_current_a",
     "pairing_s": "pairing_s",
     "input_excursion_v": "input_excursion_v",
+    "command_age_s": "command_age_s",
 }
 
 #: :class:`MotorBatch`'s float columns that :meth:`StreamingDiagnoser.update_rows` takes as rows
@@ -146,6 +150,7 @@ _ROW_INPUTS = (
     "sensor_current_a",
     "pairing_s",
     "input_excursion_v",
+    "command_age_s",
 )
 
 #: a source's pairing of samples with commands [s]: one number for all samples, or one per sample
@@ -169,6 +174,7 @@ def diagnose_motor(
     pairing_s: Pairing = None,
     input_excursion_v: NDArray[np.float64] | None = None,
     noise: BandNoise | None = None,
+    command_age_s: NDArray[np.float64] | None = None,
 ) -> tuple[dict[str, NDArray], MotorCarry]:
     """Diagnose one motor's samples (increasing time); returns result columns and the new carry.
 
@@ -185,7 +191,9 @@ def diagnose_motor(
     table's column of that name, telemetry/assemble.py), which the balance rule and its pairing guard
     weigh where the profile asks them to (``steady.excursion_weight``, ``excursion_pairing_weight``; off
     in the shipped profiles; None: not at all), and one larger than a step restarts its wait after a step
-    in every profile (:mod:`.rules.balance`). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
+    in every profile (:mod:`.rules.balance`). ``command_age_s``: each sample's held command's age (a log
+    table's column of that name; None: not known, ``pairing_s`` stands in), which tells a stall from a
+    command the log did not show (:mod:`.stall`). ``noise``: the motor's own noise, which a profile with ``noise_bands`` sets its
     bands from (:mod:`.noise`). A motor alone has no siblings (:mod:`.siblings`): :func:`start_motor`
     and :meth:`StartedCall.finish` with the vehicle stage between them judge the torque against them.
     """
@@ -205,6 +213,7 @@ def diagnose_motor(
         pairing_s=pairing_s,
         input_excursion_v=input_excursion_v,
         noise=noise,
+        command_age_s=command_age_s,
     ).finish()
     return {name: values[0] for name, values in cols.items()}, new
 
@@ -226,6 +235,7 @@ def start_motor(
     pairing_s: Pairing = None,
     input_excursion_v: NDArray[np.float64] | None = None,
     noise: BandNoise | None = None,
+    command_age_s: NDArray[np.float64] | None = None,
 ) -> StartedCall:
     """:func:`diagnose_motor` (the same arguments) run up to the vehicle stage: a call of one row."""
 
@@ -248,6 +258,7 @@ def start_motor(
         pairing_s=pairing_s if pairing_s is None or np.ndim(pairing_s) == 0 else row(np.asarray(pairing_s)),
         input_excursion_v=row(input_excursion_v),
         noise=None if noise is None else [noise],
+        command_age_s=row(command_age_s),
     )
 
 
@@ -389,6 +400,7 @@ def diagnose_motors(
     pairing_s: Pairing = None,
     input_excursion_v: NDArray[np.float64] | None = None,
     noise: Sequence[BandNoise] | None = None,
+    command_age_s: NDArray[np.float64] | None = None,
 ) -> tuple[dict[str, NDArray], list[MotorCarry]]:
     """:func:`diagnose_motor` for several motors of one model at once: one row of samples per motor.
 
@@ -420,6 +432,7 @@ def diagnose_motors(
         pairing_s=pairing_s,
         input_excursion_v=input_excursion_v,
         noise=noise,
+        command_age_s=command_age_s,
     ).finish()
 
 
@@ -473,6 +486,7 @@ def start_motors(
     pairing_s: Pairing = None,
     input_excursion_v: NDArray[np.float64] | None = None,
     noise: Sequence[BandNoise] | None = None,
+    command_age_s: NDArray[np.float64] | None = None,
 ) -> StartedCall:
     """:func:`diagnose_motors` (the same arguments) run up to the vehicle stage (:class:`StartedCall`)."""
     t = np.asarray(time_s, dtype=float)
@@ -503,6 +517,7 @@ def start_motors(
         if pairing_s is None or np.ndim(pairing_s) == 0
         else floats(np.asarray(pairing_s)),
         input_excursion_v=floats(input_excursion_v),
+        command_age_s=floats(command_age_s),
         noise=noise,
     )
     rules = profile.rules
@@ -734,6 +749,8 @@ def diagnose(
     pairing = table.meta.get("pairing_s")
     # how far each sample's input went between it and the sample before (a log's column; none: not at all)
     excursion_column = ordered.get("input_excursion_v")
+    # each sample's held command's age (a log's column; none: its pairing stands in, diagnosis/stall.py)
+    age_column = ordered.get("command_age_s")
 
     def part(values: NDArray | None, sel: NDArray | slice) -> NDArray | None:
         return None if values is None else values[sel].copy()
@@ -801,6 +818,7 @@ def diagnose(
                 ),
                 input_excursion_v=part(excursion_column, sel),
                 noise=None if noise is None else noise.get(motor),
+                command_age_s=part(age_column, sel),
             )
             if stage is None:  # finished at once: one motor's arrays alive at a time
                 _keep(out, sel, carries, motor, call.finish())
@@ -1052,6 +1070,7 @@ class StreamingDiagnoser:
                     "extra_flags",
                     "pairing_s",
                     "input_excursion_v",
+                    "command_age_s",
                 )
             )
             # one call for the motors of one type (their models differ at most in R and k_e)
@@ -1101,6 +1120,7 @@ class StreamingDiagnoser:
             pairing_s=pairing_s,
             input_excursion_v=arr(b.input_excursion_v),
             noise=self._noise_of([motor])[0] if self.profile.noise_bands > 0 else None,
+            command_age_s=arr(b.command_age_s),
         )
 
     def _start_batches(
@@ -1187,6 +1207,7 @@ class StreamingDiagnoser:
             pairing_s=pairing if pairing is not None else pairing_s,
             input_excursion_v=columns.get("input_excursion_v"),
             noise=self._noise_of(list(motors)) if self.profile.noise_bands > 0 else None,
+            command_age_s=columns.get("command_age_s"),
         )
 
     def announced(self, motor: int) -> MotorState:

@@ -9,10 +9,27 @@ for a tenth of a second; after a climb, an F2.1 read 5.4 A and was announced as 
 new operating point, so its current is averaged over the stall alone: the mean of the samples since the
 motor was first seen stopped (:func:`stall_mean`). The first sample weighs as much as the rest, and the
 persistence (0.05 s, two or three samples) still asks the split to hold.
+
+**A stall the paired command may predate** (:func:`stall_since_rows`). A log pairs each ESC sample with
+the last command it logged (telemetry/assemble.py: its age is the table's ``command_age_s``). A motor
+the autopilot drove to idle and back between two logged commands stops for a few samples under a command
+that asks for thrust, and reads as a stall: held-out world 1009 (24 kg, commands logged at 10 Hz, ESC
+reports at 90 Hz), calm healthy flight, motor 3 fell from 174 to 48 rad/s with no current for 60 ms and
+was turning again 0.1 s later, and F2.1 was announced after the stall's 0.05-s hold. Which command the
+motor had at that instant, the log does not say; that the autopilot still asked for thrust after the
+motor stopped, only a command logged after the stall began says. So a stalled sample whose stall is
+younger than its command (``time − since < command_age_s``: the command is from before the stall) is
+not counted by the persistence (:mod:`.rules.judged`); the stall's hold runs from the first sample
+whose command came after the stall began. A source without the command's age gives its pairing, a
+bound on it (``pairing_s``, which also holds how much older than its stamp a sample may be). No new
+number: the log's own timing. A source pairing each sample with the command of its own instant (the
+simulator's table, a CSV) counts every stalled sample as before; on a log whose commands come at 10 Hz
+a stall is announced up to one command interval later.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -25,7 +42,7 @@ from ..model.dynamics import last_of
 if TYPE_CHECKING:
     from .profile import ThresholdProfile
 
-__all__ = ["StallCarry", "stall_mean", "stall_mean_rows", "stop_speeds"]
+__all__ = ["StallCarry", "stall_mean", "stall_mean_rows", "stall_since_rows", "stop_speeds"]
 
 
 @dataclass(frozen=True)
@@ -35,6 +52,8 @@ class StallCarry:
     total_a: float = 0.0
     count: int = 0
     stalled: bool = False
+    #: when the running stall began [s] (:func:`stall_since_rows`; NaN: none running, or not asked)
+    since_s: float = math.nan
 
 
 def stall_mean(
@@ -59,22 +78,19 @@ def stall_mean_rows(
 ) -> tuple[NDArray[np.float64], list[StallCarry]]:
     """:func:`stall_mean` of several motors at once: rows of samples (2-D), one carry per row;
     ``lengths`` each row's number of samples (None: all; the rest is padding after them)."""
-    i, run = current_a, stalled
+    i = current_a
     rows, n = i.shape
-    counts = [n] * rows if lengths is None else lengths
-    if lengths is not None:
-        run = run & (np.arange(n) < np.asarray(lengths)[:, None])  # padding is no stall
+    run, counts = _stalled_rows(stalled, lengths)
     carried = np.array([c.stalled for c in carries])
     if not carried.any() and not run.any():  # the usual case: no stall at all
         return np.full((rows, n), np.nan), [StallCarry() if k else c for c, k in zip(carries, counts)]
-    begins = run & ~np.concatenate([carried[:, None], run[:, :-1]], axis=1)
     finite = np.isfinite(i) & run
     values = np.where(finite, i, 0.0)
     csum = np.cumsum(values, axis=1)
     ccount = np.cumsum(finite, axis=1)
     # Sums and counts up to the sample before each run's first sample, to subtract: at each sample, those
     # of the latest run begun at or before it (none in this call: the carried run's, negated)
-    latest = np.maximum.accumulate(np.where(begins, np.arange(n), -1), axis=1)
+    latest = _latest_begin(run, carried)
     have = latest >= 0
     at = np.maximum(latest, 0)
     base_sum = np.where(
@@ -100,6 +116,50 @@ def stall_mean_rows(
         else:
             news.append(StallCarry(float(last_total), int(last_count), True) if last_run else StallCarry())
     return mean, news
+
+
+def stall_since_rows(
+    time_s: NDArray[np.float64],
+    stalled: NDArray[np.bool_],
+    carried_since_s: list[float],
+    lengths: list[int] | None = None,
+) -> tuple[NDArray[np.float64], list[float]]:
+    """When each sample's stall began [s] (NaN where not stalled), rows of motors as
+    :func:`stall_mean_rows` takes them, and each row's new carry: the time its running stall began
+    (``carried_since_s``: the one running at the end of the previous call, NaN none), NaN where none runs
+    at its last sample (a row without samples keeps its carry). Module doc, "A stall the paired command
+    may predate"."""
+    t = np.asarray(time_s, dtype=float)
+    run, counts = _stalled_rows(stalled, lengths)
+    rows, n = run.shape
+    carried = np.asarray(carried_since_s, dtype=float).reshape(rows)
+    if not run.any():
+        return np.full((rows, n), np.nan), [
+            c if k == 0 else math.nan for c, k in zip(carried.tolist(), counts)
+        ]
+    latest = _latest_begin(run, np.isfinite(carried))
+    began = np.where(latest >= 0, np.take_along_axis(t, np.maximum(latest, 0), axis=1), carried[:, None])
+    since = np.where(run, began, np.nan)
+    last = last_of(since, counts)
+    return since, [c if v is None else float(v) for c, v in zip(carried.tolist(), last)]
+
+
+def _stalled_rows(
+    stalled: NDArray[np.bool_], lengths: list[int] | None
+) -> tuple[NDArray[np.bool_], list[int]]:
+    """``stalled`` with each row's padding (past its ``lengths``) no stall, and each row's length."""
+    run = np.asarray(stalled, dtype=bool)
+    rows, n = run.shape
+    if lengths is None:
+        return run, [n] * rows
+    return run & (np.arange(n) < np.asarray(lengths)[:, None]), lengths
+
+
+def _latest_begin(run: NDArray[np.bool_], carried: NDArray[np.bool_]) -> NDArray[np.intp]:
+    """At each sample, the place of the latest stall begun at or before it in this call (−1: none, or the
+    one ``carried`` running into the call from the one before)."""
+    begins = run & ~np.concatenate([carried[:, None], run[:, :-1]], axis=1)
+    return np.maximum.accumulate(np.where(begins, np.arange(run.shape[1]), -1), axis=1)
 
 
 def stop_speeds(

@@ -37,6 +37,10 @@ gets the values replay gets; :func:`pairing_uncertainty`):
   first message (nothing to compare with). Where samples carry their own time (a .bin's ESC records, a
   ULog's ``esc_status``) it is 0.
 
+The command's age alone is the column ``command_age_s`` [s] (NaN where no command is held): a stall is
+weighed against it, whether the motor had stopped before the command it is paired with was logged
+(:mod:`..diagnosis.stall`, "A stall the paired command may predate").
+
 Why the larger of the two, not their sum: the stamp is the moment both are known at; the command was sent
 ``age`` before it and the packet measured at most ``interval`` before it, so the two moments are both in
 the last ``max(age, interval)`` before the stamp and no further apart than that. The balance rule weighs
@@ -602,6 +606,7 @@ def motor_table(
     if stamped_by_message:
         interval = MessageIntervals(int(motors.max(initial=0))).since_previous(time_s, motors - 1)
     columns["pairing_s"] = pairing_uncertainty(command_age, interval)
+    columns["command_age_s"] = command_age
     meta = dict(meta)
     # A summary of the pairing for the warnings and the report (the diagnosis weighs each sample's own
     # ``pairing_s``): the held command's age (95th percentile), or how uncertain the sample's own time is if

@@ -579,6 +579,7 @@ class SamplePairing:
             "battery_voltage_v": battery_v,
             "battery_current_a": battery_a,
             "pairing_s": pairing_uncertainty(command_age, interval),
+            "command_age_s": command_age,
             "input_excursion_v": excursion_v(excursion, bus),
             "position": position,
         }

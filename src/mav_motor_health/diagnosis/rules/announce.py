@@ -71,11 +71,12 @@ class Sequential(Rule):
             )
         if frame.z_torque is not None:
             # friction and a lighter propeller in the torque balance, where it is judged (rules/equations.py);
-            # not a lighter propeller where the sample's own current reads above its band
+            # not a lighter propeller where the sample's own current reads above its band, and each only
+            # where the speed departs its way or not at all (friction no faster, a lighter propeller no slower)
             with np.errstate(divide="ignore", invalid="ignore"):
                 z_current_read = (frame.current_a - frame.current_model_a) / current_sigma_a
             evidence = equation_evidence(
-                frame.z_torque, frame.current_trusted(), evidence, z_current_read, sigmas
+                frame.z_torque, frame.current_trusted(), evidence, z_current_read, sigmas, deviation
             )
         # the tree names the fault, the test says when it has lasted: a direction gains only on samples
         # the tree (and the rules after it) named that way; elsewhere its evidence counts at most the

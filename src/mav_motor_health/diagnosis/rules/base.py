@@ -85,6 +85,9 @@ class Frame:
     #: how far each sample's input went beyond the two held inputs since the sample before [V] (the
     #: table's ``input_excursion_v``, telemetry/assemble.py); None: not at all
     input_excursion_v: NDArray[np.float64] | None = None
+    #: each sample's held command's age [s] (the table's ``command_age_s``, telemetry/assemble.py); None:
+    #: not known (``pairing_s`` stands in where a stall's start is weighed against it, :mod:`..stall`)
+    command_age_s: NDArray[np.float64] | None = None
     noise: Sequence[BandNoise] | None = None
 
     # the comparison (a CompareRule)
@@ -145,6 +148,9 @@ class Frame:
     #: the highest stop speed of each sample [rad/s] (tree rule 1, "The lowest input": a share of the free
     #: speed of the lowest input given so far); None: the profile's stop speed alone
     stop_cap_rad_s: NDArray[np.float64] | None = None
+    #: when the stall of each stalled sample began [s] (NaN where not stalled; :mod:`..stall`, "A stall the
+    #: paired command may predate"); None: the rule does not say
+    stall_since_s: NDArray[np.float64] | None = None
     #: the motor's free speed V/k_e, above which no fault turns it (tree rule 2); None: no cap
     omega_free_rad_s: NDArray[np.float64] | None = None
     #: the input activity [V] that widens the bands (balance rule); None: none measured

@@ -32,6 +32,9 @@ and after a step as the deviations' bands are (:mod:`.bands`):
   either way. On the development worlds' flights in moderate air, the faulty motor's samples the tree read
   F4.1 had ``z_T`` ≈ 4, ``z_V`` ≈ 0 under friction and ``z_T`` ≈ −0.5, ``z_V`` ≈ 2 under an open transistor
   (docs/flight.md, "Friction above the torque's band is not an open transistor");
+* a torque departure the speed's goes against (friction with the motor above its model speed, a lighter
+  propeller below it: :func:`..detection.torque_agrees_with_speed`) is no torque fault, as within its
+  band below; the sequential test reads the same gate;
 * the torque within its band: no torque fault, so the tree's F1.1 or F3.1 becomes NORMAL, and its other
   verdicts stand (F4.1 is read from the deviations as before: they see the open transistor's lost
   voltage twice, in the speed and the current, and on the held-out worlds named it more often than the
@@ -79,6 +82,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._arrays import broadcast_to, one_of
+from ..detection import torque_agrees_with_speed
 from ..states import Code, MotorState
 from .bands import held_average
 from .base import Frame, Rule
@@ -136,7 +140,10 @@ class Equations(Rule):
         if not reread.any():
             return carries
         torque_depth = np.abs(z) / n
+        # a departure the speed's goes against is no torque fault (detection.torque_agrees_with_speed)
         departs = torque_depth > 1.0
+        if frame.omega_judged_rad_s is not None and frame.omega_model_rad_s is not None:
+            departs &= torque_agrees_with_speed(z, frame.omega_judged_rad_s - frame.omega_model_rad_s)
         named = np.where(z > 0, Code.F1_1, Code.F3_1)
         # only a torque below its band may be an open transistor's (module doc): above, it is friction
         deeper_f41 = (state == Code.F4_1) & (depth >= torque_depth) & (z < 0)

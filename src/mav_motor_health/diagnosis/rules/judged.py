@@ -75,6 +75,9 @@ class Judged(Rule):
                 judged_view, measured_view = _unloaded_beyond(frame)
                 steady = steady | (judged_view & held) | (measured_view & (held | _waiting(frame)))
         eligible = (steady | one_of(state, TRANSIENT_OK)) & (state != Code.NO_DATA)
+        young = _stall_younger_than_its_command(frame)
+        if young is not None:
+            eligible &= ~young
         if frame.command is not None and profile.min_command > 0:
             idle = np.asarray(frame.command, dtype=float) < profile.min_command  # idle and spin-up
             eligible &= ~idle
@@ -82,6 +85,26 @@ class Judged(Rule):
         frame.depth[state == Code.SENSOR_FAULT] = 1.0
         frame.steady, frame.eligible = steady, eligible
         return carries
+
+
+def _stall_younger_than_its_command(frame: Frame) -> NDArray[np.bool_] | None:
+    """Stalled samples whose stall began less than their held command's age ago: that command was
+    logged before the motor stopped, and the motor may have stopped on one the log did not show
+    (:mod:`..stall`, "A stall the paired command may predate"). The age is the source's ``command_age_s``
+    where it gives one, else its pairing (a bound on the age); None where the rule gives no stall's start
+    or the source pairs each sample with its own instant's command."""
+    if frame.stall_since_s is None:
+        return None
+    pairing = None if frame.pairing_s is None else np.asarray(frame.pairing_s, dtype=float)
+    age = pairing
+    if frame.command_age_s is not None:
+        given = np.asarray(frame.command_age_s, dtype=float)
+        age = given if pairing is None else np.where(np.isfinite(given), given, pairing)
+    if age is None or not np.any(age > 0):
+        return None
+    with np.errstate(invalid="ignore"):
+        young = frame.time_s - frame.stall_since_s < age
+    return young & one_of(frame.state, TRANSIENT_OK)
 
 
 def _waiting(frame: Frame) -> NDArray[np.bool_]:
