@@ -442,14 +442,14 @@ def equation_evidence(
     zt = np.where(judged, z_torque, 0.0)
     out = evidence.copy()
     f11, f31 = DIRECTIONS.index(MotorState.F1_1), DIRECTIONS.index(MotorState.F3_1)
-    out[f11] = np.where(judged, np.maximum(zt, 0.0), evidence[f11])  # torque the model lacks: friction
+    friction = np.maximum(zt, 0.0)  # torque the model lacks: friction
     lighter = np.maximum(-zt, 0.0)  # load missing: a lighter propeller
     if z_current is not None:
         lighter = np.where(nan_to_zero(z_current) > bands_sigmas, 0.0, lighter)
     if speed_deviation is not None:
-        friction = np.where(torque_agrees_with_speed(1.0, speed_deviation), out[f11], 0.0)
-        out[f11] = np.where(judged, friction, evidence[f11])
+        friction = np.where(torque_agrees_with_speed(1.0, speed_deviation), friction, 0.0)
         lighter = np.where(torque_agrees_with_speed(-1.0, speed_deviation), lighter, 0.0)
+    out[f11] = np.where(judged, friction, evidence[f11])
     out[f31] = np.where(judged, lighter, evidence[f31])
     return out
 
