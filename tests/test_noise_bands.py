@@ -638,6 +638,73 @@ def test_a_lost_load_is_judged_from_what_the_motor_draws_in_any_air_and_in_the_w
     assert frame.eligible[:, 0].tolist() == [True, False, False, True, False, True]
 
 
+def test_a_lost_load_is_judged_in_the_torque_against_the_load_at_the_top_where_the_currents_band_hides_it(
+    paper_motor,
+) -> None:
+    """Beyond the identified speeds a lost load is also read in the torque (rules/judged.py, "In the
+    torque"): where the current's bands are too wide to show it, a motor turning beyond the top whose
+    torque, with the load taken at the top instead of the model's extrapolation, lies below its band
+    against its siblings and on its own is judged, its evidence that shortfall; a healthy motor whose
+    torque reads low only by the extrapolated load is not, nor one below its siblings only (siblings that
+    fly on a failed motor), nor one the rule holds back, nor one turning within the top, nor another
+    state."""
+    from mav_motor_health.diagnosis.rules.base import Frame
+    from mav_motor_health.diagnosis.rules.judged import Judged
+    from mav_motor_health.model.equations import current_from_speed
+
+    profile = load_profile("flight_vehicle")
+    n = profile.equation_bands
+    top = 600.0
+    rows = 6
+    edge, beyond = (1.0 + profile.range_margin) * top, 1.3 * top
+    added_nm = paper_motor.k_t * float(
+        current_from_speed(paper_motor, beyond) - current_from_speed(paper_motor, edge)
+    )
+    sigma = 0.2 * added_nm / n  # the torque's band a fifth of the load the model adds beyond the top
+    torque = EquationNoise(sigma)  # its own noise and against its siblings' alike, offsets 0
+    # the current's noise so wide that neither current view sees the lost load (45 A quiet band, 40 A band)
+    noise = [
+        BandNoise(
+            5.0, 10.0, omega_low_rad_s=400.0, omega_high_rad_s=top, torque=torque, torque_vs_siblings=torque
+        )
+    ] * rows
+    # rows: lost load; healthy (its torque low only by 40 % of the extrapolated load); lost load the rule
+    # holds back (after a step); lost load still turning within the top; lost load read as friction; a
+    # healthy motor below its siblings only (its own torque at the extrapolated model)
+    z = np.array([-1.5, -0.4, -1.5, -1.5, -1.5, -1.5])[:, None] * added_nm / sigma
+    own_nm = np.array([-1.5, -0.4, -1.5, -1.5, -1.5, 0.0])[:, None] * added_nm
+    mean_omega = np.array([beyond, beyond, beyond, 0.95 * top, beyond, beyond])[:, None]
+    frame = Frame(
+        params=paper_motor,
+        profile=profile,
+        time_s=np.zeros((rows, 1)),
+        voltage_v=np.full((rows, 1), 12.0),
+        omega_rad_s=mean_omega,
+        current_a=np.full((rows, 1), 0.1),
+        counts=[1] * rows,
+        noise=noise,
+    )
+    frame.judged_voltage_v = np.full((rows, 1), 12.0)
+    frame.since_step_s = np.array([2.0, 2.0, 0.1, 2.0, 2.0, 2.0])[:, None]
+    frame.omega_model_rad_s = np.full((rows, 1), 2.0 * top)
+    frame.omega_judged_rad_s = mean_omega
+    frame.current_judged_a = np.full((rows, 1), 0.1)
+    frame.omega_mean_rad_s, frame.current_mean_a = mean_omega, np.full((rows, 1), 0.1)
+    frame.current_band_below_a = np.full((rows, 1), 40.0)
+    frame.torque_band_nm = np.full((rows, 1), n * sigma)
+    frame.torque_residual_nm = own_nm
+    frame.z_torque = z.copy()
+    frame.sensor_flags = np.zeros((rows, 1), dtype=np.int16)
+    frame.state = np.array([MotorState.F3_1] * 4 + [MotorState.F1_1, MotorState.F3_1], dtype=np.int8)[:, None]
+    frame.steady = np.array([True, True, False, True, True, True])[:, None]
+    frame.depth = np.zeros((rows, 1))
+    Judged(profile).judge(frame, [None] * rows)
+    assert frame.steady[:, 0].tolist() == [True, False, False, False, False, False]
+    # the judged sample's evidence: its shortfall below the load at the top (-0.5 of the added load)
+    assert frame.z_torque[0, 0] == pytest.approx(-0.5 * added_nm / sigma)
+    np.testing.assert_array_equal(frame.z_torque[1:], z[1:])
+
+
 def test_after_a_step_the_bands_widen_by_what_identification_measured_in_each_bin_of_the_wait() -> None:
     noise = BandNoise(5.0, 0.3, after_step=(3.0, 1.5, math.nan, 1.0))
     since = np.array([0.0, 0.1, 0.2, 0.35, 0.5, 0.6, 2.0, np.nan])

@@ -7,7 +7,7 @@ import pytest
 
 from mav_motor_health.config import load_motor_params, load_profile
 from mav_motor_health.diagnosis import MotorState, diagnose
-from mav_motor_health.diagnosis.stall import StallCarry, stall_mean, stall_since_rows
+from mav_motor_health.diagnosis.stall import StallCarry, stall_mean, stall_rows
 from mav_motor_health.evaluation.campaign import FlightCase, run_flights
 
 
@@ -104,12 +104,13 @@ def test_stall_since_split_anywhere_equals_whole() -> None:
     rng = np.random.default_rng(12)
     t = np.cumsum(rng.uniform(0.01, 0.03, 300))[None, :]
     stalled = np.repeat(rng.random(30) < 0.5, 10)[None, :]
-    whole, end = stall_since_rows(t, stalled, [np.nan])
+    current = rng.uniform(0.0, 8.0, t.shape)
+    _, whole, (end,) = stall_rows(current, stalled, [StallCarry()], time_s=t)
     starts = np.flatnonzero(stalled[0] & ~np.concatenate([[False], stalled[0, :-1]]))
     assert np.all(whole[0, starts] == t[0, starts])
     assert np.all(np.isnan(whole[0, ~stalled[0]]))
     for cut in (1, 95, 150, 299):
-        a, carry = stall_since_rows(t[:, :cut], stalled[:, :cut], [np.nan])
-        b, last = stall_since_rows(t[:, cut:], stalled[:, cut:], carry)
+        _, a, carry = stall_rows(current[:, :cut], stalled[:, :cut], [StallCarry()], time_s=t[:, :cut])
+        _, b, (last,) = stall_rows(current[:, cut:], stalled[:, cut:], carry, time_s=t[:, cut:])
         np.testing.assert_array_equal(np.concatenate([a, b], axis=1), whole)
-        assert last == end or (np.isnan(last[0]) and np.isnan(end[0]))
+        assert last == end or (np.isnan(last.since_s) and np.isnan(end.since_s))

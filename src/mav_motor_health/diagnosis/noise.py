@@ -499,6 +499,8 @@ class NoiseRows(_ConditionsMath):
     #: the torque noise each motor is judged with (:attr:`BandNoise.torque_judged`): σ₀, its growth with
     #: the activity and with the pairing, and the offset, one row per motor (NaN: not judged in the torque)
     torque_table: NDArray[np.float64]
+    #: the torque's own noise (:attr:`BandNoise.torque`, not against the siblings), as ``torque_table``
+    own_torque_table: NDArray[np.float64]
     #: the voltage balance's noise (:attr:`BandNoise.voltage`) and the speed's less its siblings' prediction
     #: (:attr:`BandNoise.speed_vs_siblings`): σ₀, its growth with the activity and with the pairing, and the
     #: offset, one row per motor (NaN: not measured)
@@ -598,6 +600,18 @@ class NoiseRows(_ConditionsMath):
         gives (:meth:`EquationNoise.sigmas`); NaN on the rows of motors not judged in the torque."""
         return _equation_sigmas(self.torque_table, activity_v, pairing_error_rad_s)
 
+    def own_torque_z(
+        self,
+        torque_nm: NDArray[np.float64],
+        activity_v: ArrayLike,
+        pairing_error_rad_s: ArrayLike | None = None,
+    ) -> NDArray[np.float64]:
+        """Each row's torque balance (its own, not against the siblings) less its own offset, in its own
+        σ(a, e) (:attr:`BandNoise.torque`, read through the duty or not); NaN on the rows without it."""
+        sigma = _equation_sigmas(self.own_torque_table, activity_v, pairing_error_rad_s)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.asarray((torque_nm - self.own_torque_table[:, 3:4]) / sigma)
+
     def voltage_sigmas(
         self, activity_v: ArrayLike, pairing_error_rad_s: ArrayLike | None = None
     ) -> NDArray[np.float64]:
@@ -631,6 +645,7 @@ class NoiseRows(_ConditionsMath):
         }
         table = np.concatenate([n.after_step_table for n in noise]).reshape(-1, AFTER_STEP_BINS)
         torque = _equation_table([n.torque_judged for n in noise])
+        own_torque = _equation_table([n.torque for n in noise])
         slow = np.hstack(
             [
                 _equation_table([getattr(n, name) for n in noise])
@@ -642,12 +657,13 @@ class NoiseRows(_ConditionsMath):
         against_table = np.concatenate([n.against_after_step_table for n in noise]).reshape(
             -1, AFTER_STEP_BINS
         )
-        for column in (*columns.values(), table, torque, slow, voltage, against, against_table):
+        for column in (*columns.values(), table, torque, own_torque, slow, voltage, against, against_table):
             column.flags.writeable = False
         rows = cls(
             **columns,
             after_step_table=table,
             torque_table=torque,
+            own_torque_table=own_torque,
             voltage_table=voltage,
             against_table=against,
             against_after_step_table=against_table,

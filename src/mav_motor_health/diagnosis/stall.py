@@ -10,7 +10,7 @@ new operating point, so its current is averaged over the stall alone: the mean o
 motor was first seen stopped (:func:`stall_mean`). The first sample weighs as much as the rest, and the
 persistence (0.05 s, two or three samples) still asks the split to hold.
 
-**A stall the paired command may predate** (:func:`stall_since_rows`). A log pairs each ESC sample with
+**A stall the paired command may predate** (:func:`stall_rows`, with the samples' times). A log pairs each ESC sample with
 the last command it logged (telemetry/assemble.py: its age is the table's ``command_age_s``). A motor
 the autopilot drove to idle and back between two logged commands stops for a few samples under a command
 that asks for thrust, and reads as a stall: held-out world 1009 (24 kg, commands logged at 10 Hz, ESC
@@ -42,7 +42,7 @@ from ..model.dynamics import last_of
 if TYPE_CHECKING:
     from .profile import ThresholdProfile
 
-__all__ = ["StallCarry", "stall_mean", "stall_mean_rows", "stall_since_rows", "stop_speeds"]
+__all__ = ["StallCarry", "stall_mean", "stall_rows", "stop_speeds"]
 
 
 @dataclass(frozen=True)
@@ -52,7 +52,7 @@ class StallCarry:
     total_a: float = 0.0
     count: int = 0
     stalled: bool = False
-    #: when the running stall began [s] (:func:`stall_since_rows`; NaN: none running, or not asked)
+    #: when the running stall began [s] (:func:`stall_rows`; NaN: none running, or no times given)
     since_s: float = math.nan
 
 
@@ -66,31 +66,37 @@ def stall_mean(
     run = np.asarray(stalled, dtype=bool)
     if i.size == 0:
         return np.zeros(0), carry
-    mean, (new,) = stall_mean_rows(i.reshape(1, -1), run.reshape(1, -1), [carry])
+    mean, _, (new,) = stall_rows(i.reshape(1, -1), run.reshape(1, -1), [carry])
     return mean[0], new
 
 
-def stall_mean_rows(
+def stall_rows(
     current_a: NDArray[np.float64],
     stalled: NDArray[np.bool_],
     carries: list[StallCarry],
     lengths: list[int] | None = None,
-) -> tuple[NDArray[np.float64], list[StallCarry]]:
-    """:func:`stall_mean` of several motors at once: rows of samples (2-D), one carry per row;
-    ``lengths`` each row's number of samples (None: all; the rest is padding after them)."""
+    time_s: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], list[StallCarry]]:
+    """:func:`stall_mean` of several motors at once, and when each sample's stall began: rows of samples
+    (2-D), one carry per row; ``lengths`` each row's number of samples (None: all; the rest is padding
+    after them). Returns the stall's mean current, its start [s] (NaN where not stalled, and everywhere
+    without ``time_s``; module doc, "A stall the paired command may predate") and each row's new carry (a
+    row without samples keeps its own). The runs are found once for both."""
     i = current_a
     rows, n = i.shape
     run, counts = _stalled_rows(stalled, lengths)
-    carried = np.array([c.stalled for c in carries])
+    carried = np.array([c.stalled for c in carries], dtype=bool)
     if not carried.any() and not run.any():  # the usual case: no stall at all
-        return np.full((rows, n), np.nan), [StallCarry() if k else c for c, k in zip(carries, counts)]
+        none = np.full((rows, n), np.nan)
+        return none, none.copy(), [StallCarry() if k else c for c, k in zip(carries, counts)]
     finite = np.isfinite(i) & run
     values = np.where(finite, i, 0.0)
     csum = np.cumsum(values, axis=1)
     ccount = np.cumsum(finite, axis=1)
     # Sums and counts up to the sample before each run's first sample, to subtract: at each sample, those
     # of the latest run begun at or before it (none in this call: the carried run's, negated)
-    latest = _latest_begin(run, carried)
+    begins = run & ~np.concatenate([carried[:, None], run[:, :-1]], axis=1)
+    latest = np.maximum.accumulate(np.where(begins, np.arange(n), -1), axis=1)
     have = latest >= 0
     at = np.maximum(latest, 0)
     base_sum = np.where(
@@ -107,41 +113,24 @@ def stall_mean_rows(
     count: NDArray[np.int64] = ccount - base_count
     with np.errstate(divide="ignore", invalid="ignore"):
         mean = np.where(run & (count > 0), total / np.maximum(count, 1), np.nan)
+    since = np.full((rows, n), np.nan)
+    if time_s is not None:
+        carried_since = np.array([[c.since_s] for c in carries], dtype=float)
+        began = np.where(have, np.take_along_axis(np.asarray(time_s, dtype=float), at, axis=1), carried_since)
+        since = np.where(run, began, np.nan)
     news = []
-    for carry, last_run, last_total, last_count in zip(
-        carries, last_of(run, counts), last_of(total, counts), last_of(count, counts)
+    for carry, last_run, last_total, last_count, last_since in zip(
+        carries, last_of(run, counts), last_of(total, counts), last_of(count, counts), last_of(since, counts)
     ):
         if last_run is None:
             news.append(carry)
+        elif last_run:
+            start_s = float(last_since)
+            start_s = math.nan if math.isnan(start_s) else start_s  # (math.nan itself: equal carries are ==)
+            news.append(StallCarry(float(last_total), int(last_count), True, start_s))
         else:
-            news.append(StallCarry(float(last_total), int(last_count), True) if last_run else StallCarry())
-    return mean, news
-
-
-def stall_since_rows(
-    time_s: NDArray[np.float64],
-    stalled: NDArray[np.bool_],
-    carried_since_s: list[float],
-    lengths: list[int] | None = None,
-) -> tuple[NDArray[np.float64], list[float]]:
-    """When each sample's stall began [s] (NaN where not stalled), rows of motors as
-    :func:`stall_mean_rows` takes them, and each row's new carry: the time its running stall began
-    (``carried_since_s``: the one running at the end of the previous call, NaN none), NaN where none runs
-    at its last sample (a row without samples keeps its carry). Module doc, "A stall the paired command
-    may predate"."""
-    t = np.asarray(time_s, dtype=float)
-    run, counts = _stalled_rows(stalled, lengths)
-    rows, n = run.shape
-    carried = np.asarray(carried_since_s, dtype=float).reshape(rows)
-    if not run.any():
-        return np.full((rows, n), np.nan), [
-            c if k == 0 else math.nan for c, k in zip(carried.tolist(), counts)
-        ]
-    latest = _latest_begin(run, np.isfinite(carried))
-    began = np.where(latest >= 0, np.take_along_axis(t, np.maximum(latest, 0), axis=1), carried[:, None])
-    since = np.where(run, began, np.nan)
-    last = last_of(since, counts)
-    return since, [c if v is None else float(v) for c, v in zip(carried.tolist(), last)]
+            news.append(StallCarry())
+    return mean, since, news
 
 
 def _stalled_rows(
@@ -153,13 +142,6 @@ def _stalled_rows(
     if lengths is None:
         return run, [n] * rows
     return run & (np.arange(n) < np.asarray(lengths)[:, None]), lengths
-
-
-def _latest_begin(run: NDArray[np.bool_], carried: NDArray[np.bool_]) -> NDArray[np.intp]:
-    """At each sample, the place of the latest stall begun at or before it in this call (−1: none, or the
-    one ``carried`` running into the call from the one before)."""
-    begins = run & ~np.concatenate([carried[:, None], run[:, :-1]], axis=1)
-    return np.maximum.accumulate(np.where(begins, np.arange(run.shape[1]), -1), axis=1)
 
 
 def stop_speeds(

@@ -30,7 +30,7 @@ flight.md, "Speed only, in the vehicle's own noise; a command dip between two re
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,7 +39,7 @@ from ..._arrays import broadcast_to, nan_to_zero
 from ...errors import ConfigError
 from ...model.balance import BalanceCarry, balance_deviations_rows
 from ...model.dynamics import ResponseCarry, first_order_responses, last_of, previous
-from ..stall import StallCarry, stall_mean_rows, stall_since_rows, stop_speeds
+from ..stall import StallCarry, stall_rows, stop_speeds
 from ..steady import SteadyCarry, settling_rows
 from .base import CompareRule, Frame, SlowAverages
 from .step import check_settling
@@ -182,15 +182,11 @@ class BalanceRule(CompareRule):
         stalled_like = stall_speed < stop_speed
         omega_seen = np.where(stalled_like, stall_speed, omega_pred + bal.delta_omega_rad_s)
         omega_seen = np.where(np.isfinite(omega_in), omega_seen, np.nan)
-        stall_current, stall_carries = stall_mean_rows(
-            current_in, stalled_like, [c.stall for c in carries], frame.ragged
+        # the stall's mean current, and when it began: one younger than its sample's command is not
+        # counted (stall.py, "A stall the paired command may predate"; rules/judged.py)
+        stall_current, frame.stall_since_s, stall_carries = stall_rows(
+            current_in, stalled_like, [c.stall for c in carries], frame.ragged, t
         )
-        # when each stall began: one younger than its sample's command is not counted (stall.py, "A stall
-        # the paired command may predate"; rules/judged.py)
-        frame.stall_since_s, since_carries = stall_since_rows(
-            t, stalled_like, [c.stall.since_s for c in carries], frame.ragged
-        )
-        stall_carries = [replace(c, since_s=s) for c, s in zip(stall_carries, since_carries)]
         current_seen = np.where(stalled_like, stall_current, current_pred + bal.delta_current_a)
         current_seen = np.where(np.isfinite(current_in), current_seen, np.nan)
         # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air

@@ -21,7 +21,24 @@ needs none of it. What a healthy motor can do below the floor is coast down afte
 this view takes a motor driven: its input not below its low-pass. And it judges such a motor also while
 the rule waits after an input step: the autopilot's answer to the lost thrust *is* a step up to full
 command, and waiting it out delayed the alarm by the whole wait; a healthy motor driven up lags below
-its speed and draws more than its load, never less."""
+its speed and draws more than its load, never less.
+
+**In the torque.** Both views compare currents, against the current's bands, and a current's band holds
+the error of the model's current at the paired command, which on a heavy vehicle runs to tens of amperes
+(held-out worlds 1009 and 1014: 30 and 59 A, where the motor hovers at 11 and 5 A). The torque balance
+against its siblings (:mod:`.equations`) reads the measured speed instead of the command, and its band
+there was a sixth to a seventh of the current's (in amperes, over k_t); a lost propeller load read 2.5 to
+10 of its bands below it, while neither current view saw it (world 1009: the faulty motor at full command,
+50 % beyond the identified top, 0.7 A drawn). So a sample the rules read as F3.1 whose low-passed speed lies beyond the top is judged where its
+torque, with the load the model adds between the top and the speed taken back (the floor again: a
+healthy propeller needs at least its load at the top), lies below its band against its siblings and also
+on its own (against its own offset and noise, grown as the band is), where the rule holds the sample;
+the sequential test counts that shortfall, not the one below the extrapolated load
+(:func:`_torque_below_floor`). On its own too, because the motors beyond the top are mostly those flying
+on a failed one, whose siblings are no common reference: on held-out world 1008 (10-Hz telemetry) two
+motors at a third of the command turned 570-610 rad/s on 35 A after a sibling stalled, and a healthy
+motor at its own model read F3.1 below their median on 12 flights' samples (docs/flight.md, "A lost load
+read in the torque beyond the identified speeds")."""
 
 from __future__ import annotations
 
@@ -73,7 +90,17 @@ class Judged(Rule):
                 # judged beyond the range: as judged, where the rule holds the sample; as measured,
                 # also while it waits after a step (a healthy motor driven up never shows it)
                 judged_view, measured_view = _unloaded_beyond(frame)
-                steady = steady | (judged_view & held) | (measured_view & (held | _waiting(frame)))
+                current_views = (judged_view & held) | (measured_view & (held | _waiting(frame)))
+                steady = steady | current_views
+                below_floor = _torque_below_floor(frame)
+                if below_floor is not None:
+                    # the torque's view, where neither current's sees it: its evidence the shortfall
+                    # below the load at the top, not below the model extrapolated beyond it
+                    torque_view, z_floor = below_floor
+                    torque_only = torque_view & held & ~known & ~steady
+                    assert frame.z_torque is not None  # (none without it)
+                    frame.z_torque = np.where(torque_only, z_floor, frame.z_torque)
+                    steady = steady | torque_only
         eligible = (steady | one_of(state, TRANSIENT_OK)) & (state != Code.NO_DATA)
         young = _stall_younger_than_its_command(frame)
         if young is not None:
@@ -113,6 +140,51 @@ def _waiting(frame: Frame) -> NDArray[np.bool_]:
     if since is None:
         return np.zeros(frame.shape, dtype=bool)
     return np.isfinite(since) & ~frame.steady
+
+
+def _torque_below_floor(frame: Frame) -> tuple[NDArray[np.bool_], NDArray[np.float64]] | None:
+    """Samples the rules read as F3.1 whose motor turns faster than the top of its identified speed range
+    (widened by ``range_margin``) while its torque balance, with the load taken at that top instead of the
+    model's extrapolation beyond it, lies below its band, against its siblings and on its own (its own
+    noise's offset and σ, grown as the band is; a motor without its own torque noise: never): a propeller
+    that lost load (module doc, "In the torque"). And each sample's departure against its siblings so
+    read, in σ of the torque (``z_torque`` plus the load the model adds beyond the top). None where the
+    torque is not judged (no torque band, no ``z_torque``, no low-passed speed or torque).
+
+    A healthy propeller needs at least its load at the top where it turns beyond it, so the torque it
+    draws there less that load is not below the torque's noise; the model's load beyond the top, an
+    extrapolation, is taken back. The current's views (:func:`_unloaded_beyond`) hold the same argument
+    in amperes, against the current's band, which carries the command's jitter; the torque's does not
+    (it reads the measured speed, not the command's model), and on heavy vehicles whose current band
+    ran to 30-60 A it was a sixth to a seventh of it (module doc)."""
+    z, band, omega = frame.z_torque, frame.torque_band_nm, frame.omega_mean_rad_s
+    if z is None or band is None or omega is None or frame.noise is None or frame.torque_residual_nm is None:
+        return None
+    profile, params = frame.profile, frame.params
+    n = profile.equation_bands
+    top = np.array([m.omega_high_rad_s for m in frame.noise], dtype=float)
+    top = np.where(np.isfinite(top), (1.0 + profile.range_margin) * top, np.inf)[:, None]
+    with np.errstate(invalid="ignore", over="ignore"):
+        beyond = omega > top
+        # the load the model adds between the top and the speed (0 where within the top)
+        added_nm = params.k_t * (
+            current_from_speed(params, np.where(beyond, omega, 0.0))
+            - current_from_speed(params, np.where(beyond, top, 0.0))
+        )
+        z_floor = z + added_nm / (band / n)
+        view = (frame.state == Code.F3_1) & frame.current_trusted() & beyond & (z_floor < -n)
+    if view.any():
+        # and below the floor on its own, against its own offset and noise, grown as the band is: siblings
+        # that fly on a failed motor are no common reference (module doc, "In the torque")
+        rows = frame.noise_as_rows()
+        a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
+        e = frame.pairing_error_rad_s
+        torque = frame.torque_residual_nm
+        with np.errstate(divide="ignore", invalid="ignore"):
+            grown = band / (n * rows.torque_sigmas(a, e))
+            own = rows.own_torque_z(torque + added_nm, a, e) / grown
+            view &= own < -n
+    return view, z_floor
 
 
 def _unloaded_beyond(frame: Frame) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
