@@ -84,7 +84,10 @@ def stall_rows(
     row without samples keeps its own). The runs are found once for both."""
     i = current_a
     rows, n = i.shape
-    run, counts = _stalled_rows(stalled, lengths)
+    run = np.asarray(stalled, dtype=bool)
+    counts = [n] * rows if lengths is None else lengths
+    if lengths is not None:
+        run = run & (np.arange(n) < np.asarray(lengths)[:, None])  # padding is no stall
     carried = np.array([c.stalled for c in carries], dtype=bool)
     if not carried.any() and not run.any():  # the usual case: no stall at all
         none = np.full((rows, n), np.nan)
@@ -131,17 +134,6 @@ def stall_rows(
         else:
             news.append(StallCarry())
     return mean, since, news
-
-
-def _stalled_rows(
-    stalled: NDArray[np.bool_], lengths: list[int] | None
-) -> tuple[NDArray[np.bool_], list[int]]:
-    """``stalled`` with each row's padding (past its ``lengths``) no stall, and each row's length."""
-    run = np.asarray(stalled, dtype=bool)
-    rows, n = run.shape
-    if lengths is None:
-        return run, [n] * rows
-    return run & (np.arange(n) < np.asarray(lengths)[:, None]), lengths
 
 
 def stop_speeds(

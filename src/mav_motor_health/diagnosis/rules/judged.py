@@ -160,10 +160,11 @@ def _torque_below_floor(frame: Frame) -> tuple[NDArray[np.bool_], NDArray[np.flo
     z, band, omega = frame.z_torque, frame.torque_band_nm, frame.omega_mean_rad_s
     if z is None or band is None or omega is None or frame.noise is None or frame.torque_residual_nm is None:
         return None
-    profile, params = frame.profile, frame.params
-    n = profile.equation_bands
-    top = np.array([m.omega_high_rad_s for m in frame.noise], dtype=float)
-    top = np.where(np.isfinite(top), (1.0 + profile.range_margin) * top, np.inf)[:, None]
+    lighter = (frame.state == Code.F3_1) & frame.current_trusted()
+    if not lighter.any():
+        return None
+    params, n = frame.params, frame.profile.equation_bands
+    top = _identified_top(frame)
     with np.errstate(invalid="ignore", over="ignore"):
         beyond = omega > top
         # the load the model adds between the top and the speed (0 where within the top)
@@ -172,7 +173,7 @@ def _torque_below_floor(frame: Frame) -> tuple[NDArray[np.bool_], NDArray[np.flo
             - current_from_speed(params, np.where(beyond, top, 0.0))
         )
         z_floor = z + added_nm / (band / n)
-        view = (frame.state == Code.F3_1) & frame.current_trusted() & beyond & (z_floor < -n)
+        view = lighter & beyond & (z_floor < -n)
     if view.any():
         # and below the floor on its own, against its own offset and noise, grown as the band is: siblings
         # that fly on a failed motor are no common reference (module doc, "In the torque")
@@ -185,6 +186,14 @@ def _torque_below_floor(frame: Frame) -> tuple[NDArray[np.bool_], NDArray[np.flo
             own = rows.own_torque_z(torque + added_nm, a, e) / grown
             view &= own < -n
     return view, z_floor
+
+
+def _identified_top(frame: Frame) -> NDArray[np.float64]:
+    """Each row's top of its identified speed range widened by ``range_margin`` [rad/s], a column (inf
+    where the motor's noise has no top)."""
+    assert frame.noise is not None
+    top = np.array([m.omega_high_rad_s for m in frame.noise], dtype=float)
+    return np.where(np.isfinite(top), (1.0 + frame.profile.range_margin) * top, np.inf)[:, None]
 
 
 def _unloaded_beyond(frame: Frame) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
@@ -203,9 +212,7 @@ def _unloaded_beyond(frame: Frame) -> tuple[NDArray[np.bool_], NDArray[np.bool_]
     tens of amperes off in busy air and whose band grows with it."""
     assert frame.noise is not None
     profile = frame.profile
-    margin = profile.range_margin
-    top = np.array([n.omega_high_rad_s for n in frame.noise], dtype=float)
-    top = np.where(np.isfinite(top), (1.0 + margin) * top, np.inf)[:, None]
+    top = _identified_top(frame)
     # the current a healthy motor needs at the top of its range (a lower bound beyond it), with each
     # motor's own offset from the shared model, as its model is judged (rules/offsets.py)
     offset = np.array([n.current_offset_a for n in frame.noise], dtype=float)[:, None]
