@@ -27,6 +27,7 @@ from mav_motor_health.evaluation.worlds import (
 from mav_motor_health.sim.engine import run_scenario
 from mav_motor_health.sim.scenario import world_scenario
 from mav_motor_health.sim.worlds import draw_world
+from streaming import streams_as_replay
 
 REPO = Path(__file__).resolve().parents[1]
 #: a world identification accepts from a 40-s flight (1.8 kg, KV 608, its own air moderate)
@@ -254,45 +255,7 @@ def test_once_announced_an_open_transistor_reads_on_the_samples_its_departure_ho
     assert accuracy[1] > accuracy[0] + 0.05, accuracy
     # the live agent's way: the same flight in batches cut in arrival order (time, then motor), every
     # motor's samples of a batch in one call, gives the same states, the held ones among them
-    _streams_as_replay(flight, tmp_path, vehicle, shipped, held)
-
-
-def _streams_as_replay(flight, tmp_path, vehicle, profile, whole) -> None:
-    import warnings
-
-    from mav_motor_health.diagnosis.noise import band_noise_of
-    from mav_motor_health.diagnosis.pipeline import MotorBatch, StreamingDiagnoser
-    from mav_motor_health.sim.writers import write_record
-    from mav_motor_health.telemetry import sources
-
-    log = tmp_path / "streamed.tlog"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        write_record(fly_flight(flight), log)
-        table = vehicle.calibrate(sources.read(log))
-    cols = {name: table[name] for name in table.names}
-    motor = np.asarray(table["motor"]).astype(int)
-    np.testing.assert_array_equal(motor, whole["motor"])
-    np.testing.assert_array_equal(cols["time_s"], whole["time_s"])
-    motors = sorted(set(motor.tolist()))
-    stream = StreamingDiagnoser(vehicle.models(range(1, 7)), profile, motors, band_noise_of(vehicle.noise))
-    measured = np.isfinite(cols["omega_rad_s"]) | np.isfinite(cols["current_a"])
-    arrival = np.lexsort((motor, cols["time_s"]))
-    arrival = arrival[measured[arrival]]
-    got = np.full(motor.size, -1)
-    rng = np.random.default_rng(30)
-    k = 0
-    while k < arrival.size:
-        part = arrival[k : k + int(rng.integers(1, 40))]
-        k += part.size
-        batches = {}
-        for m in np.unique(motor[part]).tolist():
-            rows = part[motor[part] == m]
-            batches[m] = (MotorBatch.of_columns(cols, rows), rows)
-        results = stream.update_motors({m: b for m, (b, _) in batches.items()})
-        for m, (_, rows) in batches.items():
-            got[rows] = results[m]["state"]
-    np.testing.assert_array_equal(got[measured], whole["state"][measured])
+    streams_as_replay(flight, tmp_path, vehicle, shipped, held)
 
 
 def test_the_slow_look_judged_in_its_own_noise_names_a_small_open_transistor(tmp_path):
@@ -360,7 +323,7 @@ def test_the_slow_look_judged_in_its_own_noise_names_a_small_open_transistor(tmp
     )
     # the shipped profile whole (the slow look and the hold), streamed as the live agent streams
     whole = load_profile("flight_vehicle")
-    _streams_as_replay(flight, tmp_path, vehicle, whole, diagnose_flight(flight, folder, vehicle, whole))
+    streams_as_replay(flight, tmp_path, vehicle, whole, diagnose_flight(flight, folder, vehicle, whole))
 
 
 def test_the_torques_slow_look_names_and_announces_friction_in_gusty_air(tmp_path):
@@ -392,4 +355,4 @@ def test_the_torques_slow_look_names_and_announces_friction_in_gusty_air(tmp_pat
     assert announced[0] < 0.2 and announced[1] > announced[0] + 0.3, announced
     others = slow["motor"] != flight.motor
     assert (slow["announced"][others] == MotorState.NORMAL).all()
-    _streams_as_replay(flight, tmp_path, vehicle, shipped, slow)
+    streams_as_replay(flight, tmp_path, vehicle, shipped, slow)

@@ -55,3 +55,21 @@ def test_a_propeller_that_lost_its_load_is_named_beyond_the_identified_speeds() 
     detection = result.detection("calm", "F3.1")
     assert detection is not None and detection < 3.0, result.flights
     assert result.fault_flight_false_events() == 0, result.flights
+
+
+def test_identification_of_a_world_whose_noise_fit_rounds_below_a_bound_completes(tmp_path) -> None:
+    """Held-out world 1034's identification: the noise measurement's bounded fit of a variance's growth
+    (model/lsq.py ``fit_linear``, BVLS on scaled columns) returned a coefficient a rounding below its bound
+    of 0, and the square root of it failed the whole identification ("math domain error"); the fit keeps
+    its result within the bounds asked, and every motor's noise comes out finite and not negative."""
+    import math
+
+    from mav_motor_health.diagnosis.noise import band_noise_of
+    from mav_motor_health.evaluation.worlds import identify_world
+
+    _, _, vehicle = identify_world(1034, tmp_path)
+    noise = band_noise_of(vehicle.noise)
+    assert len(noise) == 6
+    for motor in noise.values():
+        for value in (motor.speed_rad_s, motor.speed_rad_s_per_v, motor.current_a_per_v):
+            assert math.isfinite(value) and value >= 0

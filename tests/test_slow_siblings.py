@@ -1,5 +1,7 @@
 """The slow look's bands bounded by how its siblings' slow averages run (``slow_siblings``;
-diagnosis/rules/tree.py, "The slow look as its siblings run")."""
+diagnosis/rules/tree.py, "The slow look as its siblings run"), and the torque's slow look by the spread of
+its siblings' slow torque averages (``torque_slow_siblings``; diagnosis/rules/equations.py, "The torque's
+slow look as its siblings run")."""
 
 from __future__ import annotations
 
@@ -7,10 +9,24 @@ import dataclasses
 import warnings
 
 import numpy as np
+import pytest
+
+from streaming import streams_as_replay
+
+
+@pytest.fixture(scope="module")
+def world4(tmp_path_factory):
+    """Development world 4 (ESCs at 30 Hz reporting their input current) identified from its 150-s
+    healthy flight, as ``fit`` does: its folder and vehicle."""
+    from mav_motor_health.evaluation.worlds import identify_world
+
+    folder = tmp_path_factory.mktemp("world4")
+    _, _, vehicle = identify_world(4, folder)
+    return folder, vehicle
 
 
 def test_an_open_transistor_in_moderate_air_is_named_against_the_siblings_and_friction_as_before(
-    tmp_path,
+    world4,
 ) -> None:
     """Development world 4 (ESCs at 30 Hz reporting their input current), identified from its 150-s
     healthy flight, 30-s flights in moderate air: the slow look's own bands, extrapolated beyond the
@@ -20,9 +36,9 @@ def test_an_open_transistor_in_moderate_air_is_named_against_the_siblings_and_fr
     as often either way, and no other motor is announced in any of the four diagnoses."""
     from mav_motor_health.config import load_profile
     from mav_motor_health.diagnosis.states import MotorState
-    from mav_motor_health.evaluation.worlds import diagnose_flight, identify_world, world_flights
+    from mav_motor_health.evaluation.worlds import diagnose_flight, world_flights
 
-    _, _, vehicle = identify_world(4, tmp_path)
+    tmp_path, vehicle = world4
     shipped = load_profile("flight_vehicle")
     with_siblings = dataclasses.replace(shipped, slow_siblings=1.0)
     own_alone = dataclasses.replace(shipped, slow_siblings=0.0)
@@ -102,7 +118,7 @@ def test_the_siblings_band_is_the_narrower_only_where_they_give_one_and_the_slow
     after an input step, or beyond the motor's identified speeds, it stays its own too."""
     from mav_motor_health.config import load_profile
     from mav_motor_health.diagnosis.noise import BandNoise, EquationNoise
-    from mav_motor_health.diagnosis.rules.base import Frame, SlowAverages
+    from mav_motor_health.diagnosis.rules.base import SlowAverages
     from mav_motor_health.diagnosis.rules.tree import SlowLook
 
     profile = dataclasses.replace(load_profile("flight_vehicle"), slow_siblings=1.0)
@@ -113,16 +129,7 @@ def test_the_siblings_band_is_the_narrower_only_where_they_give_one_and_the_slow
         )
     ] * 4
     rows = (4, 1)
-    frame = Frame(
-        params=paper_motor,
-        profile=profile,
-        time_s=np.zeros(rows),
-        voltage_v=np.full(rows, 10.0),
-        omega_rad_s=np.full(rows, 500.0),
-        current_a=np.full(rows, 5.0),
-        counts=[1] * 4,
-        noise=noise,
-    )
+    frame = _one_sample_per_row(paper_motor, profile, noise)
     frame.omega_model_rad_s = np.array([500.0, 500.0, 500.0, 700.0])[:, None]
     frame.omega_mean_rad_s = np.array([490.0, 490.0, 490.0, 690.0])[:, None]
     settle = 2.4
@@ -142,3 +149,107 @@ def test_the_siblings_band_is_the_narrower_only_where_they_give_one_and_the_slow
     # and the motor is neither in the wait nor beyond its identified speeds, NaN elsewhere
     assert siblings_speed is not None
     np.testing.assert_allclose(siblings_speed[:, 0], [theirs, np.nan, np.nan, np.nan])
+
+
+def test_friction_in_gusty_air_is_named_in_the_torques_slow_look_against_its_siblings_spread(world4) -> None:
+    """Development world 4, 30-s flights in gusty air: friction on one motor raises its slow torque
+    average against its siblings well beyond its siblings' spread, but the slow look's reach, the fast
+    torque band's grown beyond the identification flight's air, leaves it NORMAL on (nearly) every sample
+    after onset; bounded by the spread of the siblings' slow torque averages it is named on most of them
+    (82 % when written). No other motor is announced, with or without, nor any motor of a healthy gusty
+    flight with the bound; and the live agent's path gives replay's states."""
+    from mav_motor_health.config import load_profile
+    from mav_motor_health.diagnosis.states import MotorState
+    from mav_motor_health.evaluation.worlds import diagnose_flight, world_flights
+
+    folder, vehicle = world4
+    shipped = load_profile("flight_vehicle")
+    assert shipped.torque_slow_siblings == 1.0 and shipped.torque_slow_as_siblings
+    own_alone = dataclasses.replace(shipped, torque_slow_siblings=0.0)
+    fault, healthy = world_flights(4, duration_s=30.0, healthy_flights=1, levels=("gusty",), faults=("F1.1",))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = [diagnose_flight(fault, folder, vehicle, p) for p in (own_alone, shipped)]
+        calm = diagnose_flight(healthy, folder, vehicle, shipped)
+    accuracy = []
+    for r in results:
+        assert (r["announced"][r["motor"] != fault.motor] == MotorState.NORMAL).all()
+        after = (r["motor"] == fault.motor) & (r["time_s"] > fault.onset_s) & r["steady"].astype(bool)
+        accuracy.append(float(np.mean(r["state"][after] == MotorState.F1_1)))
+    assert accuracy[0] < 0.1 and accuracy[1] > 0.6, accuracy
+    assert (results[1]["announced"][results[1]["motor"] == fault.motor] == MotorState.F1_1).any()
+    assert (calm["announced"] == MotorState.NORMAL).all()
+    # the live agent's way, in batches: the same states (the slow torque averages and their siblings'
+    # spread carried between calls)
+    streams_as_replay(fault, folder, vehicle, shipped, results[1])
+
+
+def test_the_torques_slow_band_is_the_siblings_only_where_they_give_a_spread_and_the_motor_is_in_its_speeds(
+    paper_motor,
+) -> None:
+    """The torque's slow look's share against its siblings (rules/equations.py,
+    ``TorqueSlowLook._as_siblings_run``), one sample per row, each a slow torque average 0.05 N·m above
+    the motor's slow offset, its slow σ 0.002 N·m quiet and growing by 0.01 N·m per volt of input
+    activity, measured up to 0.5 V: where the siblings give a spread of 0.004 N·m in quiet input (a band
+    of 4.5 × 0.004) the share is 0.05 / 0.018; a spread below the motor's measured σ counts as that σ, at
+    the sample's activity within what was measured (0.3 V: σ 0.0036) and held at its limit beyond (2 V:
+    σ at 0.5 V × 1.1, the profile's margin, not the extrapolation); where they give none (NaN), or the
+    motor turns beyond its identified speeds, there is no share (NaN: its own band); and a profile without
+    the bound gives none at all."""
+    from mav_motor_health.config import load_profile
+    from mav_motor_health.diagnosis.noise import BandNoise, EquationNoise
+    from mav_motor_health.diagnosis.rules.equations import TorqueSlowLook
+
+    profile = load_profile("flight_vehicle")
+    slow_torque = EquationNoise(0.002, 0.01, offset=0.01)
+    noise = [
+        BandNoise(
+            5.0,
+            0.3,
+            omega_low_rad_s=400.0,
+            omega_high_rad_s=600.0,
+            activity_high_v=0.5,
+            slow_torque=slow_torque,
+        )
+    ] * 6
+    rows = (6, 1)
+    frame = _one_sample_per_row(paper_motor, profile, noise)
+    frame.omega_model_rad_s = np.array([500.0, 500.0, 500.0, 500.0, 500.0, 700.0])[:, None]
+    frame.omega_mean_rad_s = frame.omega_model_rad_s.copy()
+    frame.activity_v = np.array([0.0, 0.0, 0.3, 2.0, 0.0, 0.0])[:, None]
+    frame.torque_slow_spread_low_nm = np.array([0.004, 0.001, 0.001, 0.001, np.nan, 0.004])[:, None]
+    averaged = np.full(rows, 0.06)
+    n = profile.equation_bands * profile.slow_band_fraction * profile.torque_slow_siblings
+    at_limit = float(np.hypot(0.002, 0.01 * 0.5 * (1.0 + profile.range_margin)))
+    share = TorqueSlowLook(profile)._as_siblings_run(frame, averaged)
+    assert share is not None
+    np.testing.assert_allclose(
+        share[:, 0],
+        [
+            0.05 / (n * 0.004),
+            0.05 / (n * 0.002),
+            0.05 / (n * float(np.hypot(0.002, 0.003))),
+            0.05 / (n * at_limit),
+            np.nan,
+            np.nan,
+        ],
+    )
+    without = TorqueSlowLook(dataclasses.replace(profile, torque_slow_siblings=0.0))
+    assert without._as_siblings_run(frame, averaged) is None
+
+
+def _one_sample_per_row(paper_motor, profile, noise):
+    """A frame of one sample per row (one row per motor noise given): 500 rad/s, 5 A at 10 V, at 0 s."""
+    from mav_motor_health.diagnosis.rules.base import Frame
+
+    rows = (len(noise), 1)
+    return Frame(
+        params=paper_motor,
+        profile=profile,
+        time_s=np.zeros(rows),
+        voltage_v=np.full(rows, 10.0),
+        omega_rad_s=np.full(rows, 500.0),
+        current_a=np.full(rows, 5.0),
+        counts=[1] * len(noise),
+        noise=noise,
+    )

@@ -544,6 +544,19 @@ class NoiseRows(_ConditionsMath):
         t = self.slow_table
         return t[:, 3:4], t[:, 7:8], t[:, 0:1], t[:, 4:5]
 
+    def slow_torque_within(
+        self,
+        activity_v: ArrayLike,
+        pairing_error_rad_s: ArrayLike | None = None,
+        margin: float = 0.0,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Each row's slow offset of the torque against its siblings [N·m] (a column), and its slow σ at each
+        sample's conditions held within those the noise was measured in (widened by ``margin``): what
+        identification measured there, none of the growth beyond (NaN: not measured)."""
+        a, e = _conditions(activity_v, pairing_error_rad_s)
+        sigma, per_activity, per_pairing, offset = (self.slow_table[:, k : k + 1] for k in range(8, 12))
+        return offset, _grown(sigma, per_activity, per_pairing, *self._within_conditions(a, e, margin))
+
     def slow_torque_z(
         self,
         torque_nm: NDArray[np.float64],

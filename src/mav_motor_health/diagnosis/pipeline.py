@@ -267,7 +267,8 @@ def vehicle_stage(
 ) -> VehicleStage | None:
     """The vehicle stage of ``motors`` (:mod:`.siblings`), with what it takes across them: the torque
     where a motor is judged against its siblings' (its noise was measured so), the deviations' live
-    noise where ``profile`` grows its bands as the siblings run (``conditions_siblings``), the speed
+    noise where ``profile`` grows its bands as the siblings run (``conditions_siblings``), each motor's slow
+    torque average where its slow look is bounded by the siblings' spread (``torque_slow_siblings``), the speed
     deviation where it judges the speed against the siblings' prediction (``speed_against_siblings``) and
     the noise gives their covariance (:mod:`.prediction`; a sibling departing by more than the sequential
     test's reference σ is left out of the others'); None: none of them, no stage. Motors not in
@@ -281,6 +282,8 @@ def vehicle_stage(
             quantities += ["live_z2_speed", "live_z2_current"]
         if profile.slow_as_siblings:
             quantities += ["slow_ms_speed", "slow_ms_current"]
+        if profile.torque_slow_as_siblings and "torque_residual_nm" in quantities:
+            quantities.append("torque_slow_raw_nm")
         if profile.speed_against_siblings > 0:
             prediction = SiblingPrediction.of(
                 {m: n.speed_covariance for m, n in noise.items()},
@@ -295,9 +298,15 @@ def vehicle_stage(
         return None
     # the torque against siblings at its own speed, within the margin the model is trusted beyond its
     # identified speeds (siblings.py, "Beyond the identified speeds")
-    alike = {"torque_residual_nm": profile.range_margin} if profile.range_margin > 0 else {}
-    # the siblings' torque spread, where the bands grow with it (rules/bands.py)
-    spreads = ("torque_residual_nm",) if profile.torque_siblings_spread > 0 else ()
+    alike = (
+        {"torque_residual_nm": profile.range_margin, "torque_slow_raw_nm": profile.range_margin}
+        if profile.range_margin > 0
+        else {}
+    )
+    # the siblings' torque spread, where the bands grow with it (rules/bands.py), and their slow torque
+    # averages' spread, where the torque's slow look is bounded by it (rules/equations.py)
+    spreads: tuple[str, ...] = ("torque_residual_nm",) if profile.torque_siblings_spread > 0 else ()
+    spreads += ("torque_slow_raw_nm",)
     return VehicleStage(
         [int(m) for m in motors],
         tuple(quantities),

@@ -165,6 +165,14 @@ class ThresholdProfile:
     ``noise_bands`` and ``slow_band_fraction``, not in the slow look's wait after an input step
     (:mod:`.rules.tree`, "The slow look as its siblings run"; nothing to bound without them). 0, the
     default: the slow look's bands from its own measured noise alone.
+    ``torque_slow_siblings`` (m > 0, with ``conditions_siblings``, ``equation_bands`` and
+    ``slow_band_fraction``): the torque's slow look (:class:`~.rules.equations.TorqueSlowLook`) is at most
+    as wide as m times the spread of the other motors' slow torque averages around their median (in N·m,
+    low-passed over ``conditions_siblings_s``; never below the motor's own quiet slow σ of the torque),
+    times ``equation_bands`` and ``slow_band_fraction``, within the motor's identified speeds, the slow
+    look's wait after an input step included (:mod:`.rules.equations`, "The torque's slow look as its
+    siblings run"). 0, the default: the
+    torque's slow look as wide as the fast torque's band holds of its σ, its growth included.
     ``equation_bands`` (n > 0, with ``noise_bands``): friction (F1.1) and a lighter propeller (F3.1),
     which move the model's torque balance alone, are judged in it, against n times its own noise, which
     identification measured (:mod:`.rules.equations`; not where the ESC reports its input current, whose
@@ -201,6 +209,7 @@ class ThresholdProfile:
     conditions_siblings_s: float = 10.0
     torque_siblings_spread: float = 0.0
     slow_siblings: float = 0.0
+    torque_slow_siblings: float = 0.0
     equation_bands: float = 0.0
     speed_against_siblings: float = 0.0
     steady: CompareRule = field(default_factory=StepRule)
@@ -332,6 +341,12 @@ class ThresholdProfile:
                 key="slow_siblings",
                 expected="a multiple 0..100 of the siblings' slow deviations (0: not used)",
             )
+        if not 0 <= self.torque_slow_siblings <= 100:
+            raise ConfigError(
+                f"{self.torque_slow_siblings!r}",
+                key="torque_slow_siblings",
+                expected="a multiple 0..100 of the siblings' slow torque spread (0: not used)",
+            )
         if not 0 < self.conditions_siblings_s <= 600:
             raise ConfigError(
                 f"{self.conditions_siblings_s!r}",
@@ -448,6 +463,18 @@ class ThresholdProfile:
         """Whether the slow look's bands are bounded by how its siblings' slow averages run
         (``slow_siblings``, :mod:`.rules.tree`): the live noise measures them before the vehicle stage."""
         return self.slow_siblings > 0 and self.slow_band_fraction > 0 and self.grows_as_siblings
+
+    @property
+    def torque_slow_as_siblings(self) -> bool:
+        """Whether the torque's slow look is bounded by the spread of its siblings' slow torque averages
+        (``torque_slow_siblings``, :mod:`.rules.equations`): the live noise averages each motor's torque
+        slowly before the vehicle stage, which gives the spread."""
+        return (
+            self.torque_slow_siblings > 0
+            and self.slow_band_fraction > 0
+            and self.equation_bands > 0
+            and self.grows_as_siblings
+        )
 
     @property
     def grows_as_siblings(self) -> bool:

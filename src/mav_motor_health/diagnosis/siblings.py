@@ -64,7 +64,10 @@ residuals lie from their median at each sample: their median absolute deviation 
 :data:`MAD_TO_SIGMA` (a standard deviation where they are normal), from the same values and with the same
 need of three as the median. It says how wide a healthy motor's torque against its siblings runs in the
 air of this instant, measured on the siblings alone (the motor's own departure never counts in it), and
-a faulty sibling among five moves a median absolute deviation as little as it moves the median.
+a faulty sibling among five moves a median absolute deviation as little as it moves the median. Where the
+profile bounds the torque's slow look by its siblings (``torque_slow_siblings``, :mod:`.rules.equations`),
+the same for each motor's slow average of its torque residual (``torque_slow_raw_nm``), taken like the
+torque: a sibling beyond its identified speeds only at the motor's own speed.
 """
 
 from __future__ import annotations
@@ -91,10 +94,14 @@ STAGE_QUANTITIES = (
     ("speed_deviation_rad_s", "speed_siblings_rad_s"),
     ("slow_ms_speed", "siblings_slow_ms_speed"),
     ("slow_ms_current", "siblings_slow_ms_current"),
+    ("torque_slow_raw_nm", "siblings_torque_slow_nm"),
 )
 #: the quantities whose siblings' spread the stage also gives, where asked (:attr:`VehicleStage.spreads`):
 #: the quantity, and the frame field the spread goes to (module doc, "The siblings' spread")
-STAGE_SPREADS = (("torque_residual_nm", "torque_siblings_spread_nm"),)
+STAGE_SPREADS = (
+    ("torque_residual_nm", "torque_siblings_spread_nm"),
+    ("torque_slow_raw_nm", "siblings_torque_slow_spread_nm"),
+)
 #: the key of a quantity's spread in what :meth:`VehicleStage.references` returns
 SPREAD = " spread"
 #: the median absolute deviation of normal values times this is their standard deviation

@@ -27,7 +27,10 @@ robust standard deviation, :mod:`..siblings`, "The siblings' spread"), :class:`S
 per motor over its judged samples in its identified speed range (``conditions_siblings_s``, as the live
 noise), and the torque's growth beyond the conditions is at most m times that spread over the torque's
 identified σ(a, e) (m = ``torque_siblings_spread``), never less than 1 and never more than the
-deviations' growth.
+deviations' growth. Where the profile bounds the torque's slow look by its siblings
+(``torque_slow_siblings``), :class:`LiveNoise` also averages each motor's torque residual slowly for the
+stage, and :class:`SiblingBands` low-passes the spread of the siblings' slow averages alike
+(:mod:`..rules.equations`, "The torque's slow look as its siblings run").
 """
 
 from __future__ import annotations
@@ -94,17 +97,39 @@ class LiveNoise(Rule):
 
     def new_carry(self) -> Any:
         # (time, value) of the speed's and the current's low-pass, then (slow_siblings) the slow averages'
-        # counted means' (time, sum, weight) of the speed and the current and the row's last sample time
-        return (math.nan,) * (4 + SLOW_CARRY if self.profile.slow_as_siblings else 4)
+        # counted means' (time, sum, weight) of the speed and the current and the row's last sample time,
+        # then (torque_slow_siblings) the slow torque average's (time, value)
+        return (math.nan,) * self._widths()[-1]
+
+    def _widths(self) -> tuple[int, int, int]:
+        """Where each part of a row's carry ends: the fast low-passes, the slow squares, the slow torque."""
+        slow = 4 + (SLOW_CARRY if self.profile.slow_as_siblings else 0)
+        return 4, slow, slow + (2 if self.profile.torque_slow_as_siblings else 0)
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
         profile = self.profile
         _noise_of(frame, profile)  # each motor has its noise (else a clear error)
+        fast_end, slow_end, torque_end = self._widths()
+        parts = [self._fast(frame, [c[:fast_end] for c in carries])]
         if profile.slow_as_siblings:
-            slow_carries = self._slow_squares(frame, [c[4:] for c in carries])
-            fast = self._fast(frame, [c[:4] for c in carries])
-            return [f + s for f, s in zip(fast, slow_carries)]
-        return self._fast(frame, carries)
+            parts.append(self._slow_squares(frame, [c[fast_end:slow_end] for c in carries]))
+        if profile.torque_slow_as_siblings:
+            parts.append(self._slow_torque(frame, [c[slow_end:torque_end] for c in carries]))
+        return [sum(row, ()) for row in zip(*parts)]
+
+    def _slow_torque(self, frame: Frame, carries: list[Any]) -> list[tuple[float, ...]]:
+        """``torque_slow_raw_nm``: each motor's torque residual averaged over its judged samples in its
+        identified speeds with ``slow_factor`` times the deviations' low-pass time, as the torque's slow
+        look averages the torque against its siblings (rules/equations.py), NaN where not counted: the
+        vehicle stage gives the spread of the siblings' (rules/equations.py, "The torque's slow look as
+        its siblings run"); each row's carry advanced."""
+        torque = frame.torque_residual_nm
+        if torque is None:
+            frame.torque_slow_raw_nm = None
+            return [tuple(c) for c in carries]
+        counted = _live_samples(frame) & np.isfinite(torque)
+        frame.torque_slow_raw_nm, advanced = slow_average(frame, torque, counted, carries)
+        return advanced
 
     def _slow_squares(self, frame: Frame, carries: list[Any]) -> list[tuple[float, ...]]:
         """``slow_ms_speed`` and ``slow_ms_current``: each motor's slow averages' squared deviation from its
@@ -367,6 +392,28 @@ class Bands(Rule):
         return grown
 
 
+def slow_average(
+    frame: Frame, values: NDArray[np.float64], counted: NDArray[np.bool_], carries: Sequence[Any]
+) -> tuple[NDArray[np.float64] | None, list[tuple[float, ...]]]:
+    """``values`` averaged over each row's ``counted`` samples with the profile's ``slow_factor`` times
+    the deviations' low-pass time at each sample (:func:`held_average`, from each row's carried (time,
+    value)), NaN where not counted, and the carries advanced; None and the carries as given where the
+    profile has no slow look or the frame no low-pass time."""
+    slow_factor = float(getattr(frame.profile.steady, "slow_factor", 0.0))
+    if frame.low_pass_s is None or not slow_factor > 0:
+        return None, [tuple(c) for c in carries]
+    carried = np.array(carries, dtype=float).reshape(frame.shape[0], 2)
+    low, last_t, last_y = held_average(
+        frame.time_s,
+        np.where(counted, values, 0.0),
+        counted,
+        slow_factor * broadcast_to(frame.low_pass_s, frame.shape),
+        carried[:, 0],
+        carried[:, 1],
+    )
+    return np.where(counted, low, np.nan), list(zip(last_t, last_y))
+
+
 @dataclass(frozen=True)
 class SiblingBands(Bands):
     """:class:`Bands`, grown beyond the noise's conditions no more than the siblings' deviations run
@@ -375,16 +422,36 @@ class SiblingBands(Bands):
     reads_siblings: ClassVar[bool] = True
 
     def new_carry(self) -> Any:
-        # the low-passed siblings' torque spread: its last counted time and value
-        return (math.nan, math.nan)
+        # the low-passed siblings' torque spread: its last counted time and value; then (torque_slow_siblings)
+        # the low-passed spread of their slow torque averages, the same
+        return (math.nan,) * (4 if self.profile.torque_slow_as_siblings else 2)
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
-        spread = frame.torque_siblings_spread_nm
-        frame.torque_spread_low_nm = None
-        if spread is None or not self.profile.torque_siblings_spread > 0:
-            return super().judge(frame, carries)
+        rows = frame.shape[0]
+        carried = np.array([c if c is not None else self.new_carry() for c in carries], dtype=float)
+        carried = carried.reshape(rows, -1)
+        frame.torque_spread_low_nm = frame.torque_slow_spread_low_nm = None
+        out = [tuple(c) for c in carried.tolist()]
+        if frame.torque_siblings_spread_nm is not None and self.profile.torque_siblings_spread > 0:
+            frame.torque_spread_low_nm, fast = self._held(
+                frame, frame.torque_siblings_spread_nm, carried[:, :2]
+            )
+            out = [f + tuple(c[2:]) for f, c in zip(fast, out)]
+        if frame.siblings_torque_slow_spread_nm is not None and self.profile.torque_slow_as_siblings:
+            frame.torque_slow_spread_low_nm, slow = self._held(
+                frame, frame.siblings_torque_slow_spread_nm, carried[:, 2:4]
+            )
+            out = [tuple(c[:2]) + s for s, c in zip(slow, out)]
+        super().judge(frame, carries)
+        return out
+
+    def _held(
+        self, frame: Frame, spread: NDArray[np.float64], carried: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], list[tuple[float, float]]]:
+        """A siblings' spread low-passed over each motor's judged samples in its identified speeds
+        (``conditions_siblings_s``, as the live noise), from each row's carried (time, value): the
+        low-passed spread and the carries advanced."""
         counted = _live_samples(frame) & np.isfinite(spread)
-        carried = np.array([(math.nan, math.nan) if c is None else c for c in carries], dtype=float)
         low, last_t, last_y = held_average(
             frame.time_s,
             np.where(counted, spread, 0.0),
@@ -393,9 +460,7 @@ class SiblingBands(Bands):
             carried[:, 0],
             carried[:, 1],
         )
-        frame.torque_spread_low_nm = low
-        super().judge(frame, carries)
-        return list(zip(last_t, last_y))
+        return low, list(zip(last_t, last_y))
 
     def torque_growth(
         self, frame: Frame, grown: NDArray[np.float64] | float, sigma_nm: NDArray[np.float64]

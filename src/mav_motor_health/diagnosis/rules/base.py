@@ -121,6 +121,9 @@ class Frame:
     torque_siblings_spread_nm: NDArray[np.float64] | None = None
     #: that spread low-passed over each motor's judged samples (rules/bands.py, "The torque's own growth")
     torque_spread_low_nm: NDArray[np.float64] | None = None
+    #: the spread of the siblings' slow torque averages low-passed alike (rules/equations.py, "The torque's
+    #: slow look as its siblings run")
+    torque_slow_spread_low_nm: NDArray[np.float64] | None = None
     #: each motor's identified σ(a, e) at each sample, speed [rad/s] and current [A] (rules/bands.py,
     #: where the live noise is measured before the bands; None: worked out by the bands)
     sigma_speed_rad_s: NDArray[np.float64] | None = None
@@ -139,6 +142,14 @@ class Frame:
     slow_ms_current: NDArray[np.float64] | None = None
     siblings_slow_ms_speed: NDArray[np.float64] | None = None
     siblings_slow_ms_current: NDArray[np.float64] | None = None
+    #: each motor's torque residual averaged slowly over its judged samples in its identified speeds [N·m]
+    #: (the live noise, rules/bands.py, where the profile's ``torque_slow_siblings`` asks for it; None: not
+    #: averaged), the median of the other motors' latest and their spread around it as a standard deviation
+    #: (the vehicle stage; NaN: too few siblings there; rules/equations.py, "The torque's slow look as its
+    #: siblings run")
+    torque_slow_raw_nm: NDArray[np.float64] | None = None
+    siblings_torque_slow_nm: NDArray[np.float64] | None = None
+    siblings_torque_slow_spread_nm: NDArray[np.float64] | None = None
     #: the siblings' linear prediction of each sample's speed deviation [rad/s] (the vehicle stage,
     #: :mod:`..prediction`; None: not predicted, NaN: a sibling's value missing there); where the profile's
     #: ``speed_against_siblings`` judges against it, ``omega_judged_rad_s`` has it taken off (:mod:`.against`)

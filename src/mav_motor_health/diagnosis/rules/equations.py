@@ -67,6 +67,34 @@ friction of the paper's strength reads NORMAL on every sample and stands out of 
 noise by tens of σ. The sequential test counts its departure for the fewer observations a longer average
 gives (:mod:`..detection`, "The slow look's evidence").
 
+**The torque's slow look as its siblings run** (``torque_slow_siblings``). The slow look's reach is the
+fast torque band's in units of its σ, and beyond the identification flight's conditions that band grows
+(:mod:`.bands`): in gusty air by two to seven times, so the reach ran from 8 to 30 slow σ while the
+healthy motors' slow averages stayed within about ±1 of theirs (10th to 90th percentile) and friction's
+stood 5 to 9 out (held-out world 1016, gusty, the faulty motor read NORMAL on every sample; docs/
+flight.md, "The torque's slow look as its siblings run"). How far healthy slow torque averages part in the
+air of the moment, the five siblings show: :class:`~.bands.LiveNoise` averages each motor's own torque
+residual as this rule averages the torque against its siblings (the same time constant, over its judged
+samples in its identified speeds), the vehicle stage gives the spread of the other motors' averages
+around their median (:mod:`..siblings`, "The siblings' spread": what the six share, the ripple among it,
+drops out of a spread), :class:`~.bands.SiblingBands` low-passes that spread over the motor's judged
+samples in its identified speeds (``conditions_siblings_s``, as it does the fast torque's spread: the
+spread of five values at one instant is itself noisy, and taken as it stood it let a healthy motor on
+held-out world 1019 announce friction in moderate air), and the slow look's band is at most
+``equation_bands · slow_band_fraction · m`` times the low-passed spread (m = ``torque_slow_siblings``),
+never below as many of the motor's own slow σ at the sample's activity and pairing held within those the
+identification flight reached (what it measured there, none of the growth beyond): the narrower of the
+two. The siblings take the place of the extrapolation beyond the measured conditions, never of what was
+measured: a spread low-passed over seconds does not follow one motor's upset at an input step, which
+the slow average holds for a second or more and its measured σ at that activity covers (held-out world
+1013, a healthy motor in calm air: a step put 18 quiet σ in its slow torque average for a moment, and a
+band of the siblings' spread with the quiet σ as its floor announced friction). Only where the motor lies
+in its identified speeds (by its model speed or the speed it turns), as the deviations' slow look bounds
+its own (:mod:`.tree`), and where three siblings give a value; unlike that look, in the wait after an
+input step too: in gusty air a step is seldom 2.4 s away (on world 1016's flight 97 % of the samples lay
+in that wait), and the floor above holds what identification measured the steps to add. A motor's own
+departure never widens its own band.
+
 The sequential test (:mod:`.announce`) reads the same ``z_T`` for F1.1 and F3.1 where it is judged here
 (``frame.z_torque``, NaN elsewhere). What stays with the deviations: the stop speed and the stall's
 current, the speed-only states, F4.1 and UNKNOWN, and the lost-load check beyond the identified speeds
@@ -81,10 +109,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._arrays import broadcast_to, one_of
+from ..._arrays import one_of
 from ..detection import torque_agrees_with_speed
 from ..states import Code, MotorState
-from .bands import held_average
+from .bands import slow_average
 from .base import Frame, Rule
 
 if TYPE_CHECKING:
@@ -185,22 +213,15 @@ class Equations(Rule):
         """``frame.torque_slow_nm``: the torque against its siblings, averaged over the steady
         samples with ``slow_factor`` times the deviations' low-pass time (module doc, "The slow look");
         each row's carry advanced. Nothing where the profile has no slow look."""
-        slow_factor = float(getattr(self.profile.steady, "slow_factor", 0.0))
-        if frame.slow is None or not slow_factor > 0 or frame.low_pass_s is None:
+        if frame.slow is None:
             return carries
-        rows, width = frame.shape
+        width = frame.shape[1]
         counted = available & frame.steady & (np.arange(width)[None, :] < np.asarray(frame.counts)[:, None])
-        carried = np.array(carries, dtype=float).reshape(rows, 2)
-        low, last_t, last_y = held_average(
-            frame.time_s,
-            np.where(counted, torque, 0.0),
-            counted,
-            slow_factor * broadcast_to(frame.low_pass_s, frame.shape),
-            carried[:, 0],
-            carried[:, 1],
-        )
-        frame.torque_slow_nm = np.where(counted, low, np.nan)
-        return list(zip(last_t, last_y))
+        averaged, advanced = slow_average(frame, torque, counted, carries)
+        if averaged is None:
+            return carries
+        frame.torque_slow_nm = averaged
+        return advanced
 
 
 @dataclass(frozen=True)
@@ -234,6 +255,10 @@ class TorqueSlowLook(Rule):
         with np.errstate(divide="ignore", invalid="ignore"):
             reach = fraction * band / rows.torque_sigmas(a, e)
             slow_depth = np.abs(z) / reach
+        theirs = self._as_siblings_run(frame, averaged)
+        if theirs is not None:
+            # the narrower of the two bands: the larger share of it (NaN: the motor's own)
+            slow_depth = np.where(np.isfinite(theirs) & ~(theirs <= slow_depth), theirs, slow_depth)
         # the paper's directions in the slow averages too: friction turns the motor no faster than its
         # model, a lighter propeller no slower (an open transistor's lost current lowers the torque read
         # through the duty, and the motor slows: not a lighter propeller)
@@ -248,3 +273,26 @@ class TorqueSlowLook(Rule):
         # in σ of the band, as the test counts the torque's own departure (z_torque)
         frame.note_slow_evidence(named, slow_depth * self.profile.equation_bands)
         return carries
+
+    def _as_siblings_run(self, frame: Frame, averaged: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """Each sample's slow torque departure as a share of the band its siblings give (module doc, "The
+        torque's slow look as its siblings run"): ``equation_bands · slow_band_fraction · m`` times the
+        spread of their slow torque averages (the vehicle stage's, low-passed by :class:`~.bands.
+        SiblingBands`), never below the motor's own slow σ at the sample's conditions held within those
+        identification measured; NaN where the siblings give none and beyond the motor's identified speeds; None: the profile does
+        not bound it so, or the stage gave no spread."""
+        spread = frame.torque_slow_spread_low_nm
+        profile = self.profile
+        if spread is None or not profile.torque_slow_as_siblings:
+            return None
+        rows = frame.noise_as_rows()
+        a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
+        offset, measured = rows.slow_torque_within(a, frame.pairing_error_rad_s, profile.range_margin)
+        reach = profile.equation_bands * profile.slow_band_fraction * profile.torque_slow_siblings
+        # in the identified speeds by the model speed or the speed it turns (rules/tree.py, the same rule)
+        turning = frame.omega_mean_rad_s if frame.omega_mean_rad_s is not None else frame.omega_rad_s
+        within = rows.in_speed_range(frame.omega_model_rad_s, 0.0) | rows.in_speed_range(turning, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # (np.maximum, not fmax: where the siblings give no spread, NaN, the motor's own band)
+            share = np.abs(averaged - offset) / (reach * np.maximum(spread, measured))
+        return np.where(within, share, np.nan)
