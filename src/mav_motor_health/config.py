@@ -286,6 +286,7 @@ _PROFILE_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "torque_siblings_spread": (0.0, 100.0, ""),
     "slow_siblings": (0.0, 100.0, ""),
     "torque_slow_siblings": (0.0, 100.0, ""),
+    "voltage_slow_siblings": (0.0, 100.0, ""),
     "equation_bands": (0.0, 50.0, ""),
     "speed_against_siblings": (0.0, 10.0, ""),
 }
@@ -458,6 +459,8 @@ def dump_profile(profile: ThresholdProfile, source: Mapping[str, str] | None = N
                 lines.append(f"slow_siblings = {profile.slow_siblings!r}")
             if profile.torque_slow_siblings:
                 lines.append(f"torque_slow_siblings = {profile.torque_slow_siblings!r}")
+            if profile.voltage_slow_siblings:
+                lines.append(f"voltage_slow_siblings = {profile.voltage_slow_siblings!r}")
     if profile.equation_bands:
         lines.append(f"equation_bands = {profile.equation_bands!r}")
     if profile.speed_against_siblings:

@@ -90,7 +90,8 @@ low-passed that many times longer) is judged against its own spread, measured he
 on the samples it could judge (``slow_ready``): σ(a, e) of the slow averages of speed and current around
 each motor's own median, that median added to the quiet σ in quadrature (``slow_speed_rad_s``,
 ``..._per_v``, ``..._per_pairing``, ``slow_speed_offset_rad_s``; ``slow_current_a`` alike; the torque
-against its siblings averaged as long, ``slow_torque_nm`` ..., :mod:`.rules.equations`). No share of
+against its siblings averaged as long, ``slow_torque_nm`` ..., :mod:`.rules.equations`; the voltage
+balance against its siblings alike, ``slow_voltage_v`` ..., :mod:`.rules.voltage`). No share of
 the bands is tuned: the slow look's bands hold as many of its σ as the fast look's hold of theirs
 (:class:`..rules.tree.SlowLook`). Beyond the conditions the noise was measured in, the slow σ grows at
 least as the fast σ grows from their limits: a calm flight may measure the slow average's noise flat in
@@ -192,6 +193,10 @@ NOISE_KEYS = {
     "slow_torque_nm_per_v": "N·m per V of input activity",
     "slow_torque_nm_per_pairing": "N·m per rad/s of pairing error",
     "slow_torque_offset_nm": "N·m",
+    "slow_voltage_v": "V",
+    "slow_voltage_v_per_v": "V per V of input activity",
+    "slow_voltage_v_per_pairing": "V per rad/s of pairing error",
+    "slow_voltage_offset_v": "V",
     "speed_vs_siblings_rad_s": "rad/s",
     "speed_vs_siblings_rad_s_per_v": "rad/s per V of input activity",
     "speed_vs_siblings_per_pairing": "rad/s per rad/s of pairing error",
@@ -243,6 +248,12 @@ EQUATION_KEYS = {
         "slow_torque_nm_per_pairing",
         "slow_torque_offset_nm",
     ),
+    "slow_voltage": (
+        "slow_voltage_v",
+        "slow_voltage_v_per_v",
+        "slow_voltage_v_per_pairing",
+        "slow_voltage_offset_v",
+    ),
     "speed_vs_siblings": (
         "speed_vs_siblings_rad_s",
         "speed_vs_siblings_rad_s_per_v",
@@ -268,10 +279,13 @@ SIGNED_NOISE_KEYS = (
     "slow_speed_offset_rad_s",
     "slow_current_offset_a",
     "slow_torque_offset_nm",
+    "slow_voltage_offset_v",
     "speed_vs_siblings_offset_rad_s",
     *COVARIANCE_KEYS.values(),
     *LAGGED_COVARIANCE_KEYS.values(),
 )
+#: the slow look's noises in the order of :attr:`NoiseRows.slow_table`'s columns (four each)
+SLOW_NOISES = ("slow_speed", "slow_current", "slow_torque", "slow_voltage")
 #: the identified speed range: these shares of the judged samples' model speeds lie inside it
 RANGE_SHARES = (0.01, 0.99)
 #: the input activity and pairing error the noise was measured up to: this share of the judged samples'
@@ -509,9 +523,9 @@ class NoiseRows(_ConditionsMath):
     #: the speed less its siblings' prediction: how many times wider after a step, per bin
     #: (:attr:`BandNoise.against_after_step_table`), one row per motor
     against_after_step_table: NDArray[np.float64]
-    #: the slow look's noise (:attr:`BandNoise.slow_speed`, :attr:`BandNoise.slow_current`,
-    #: :attr:`BandNoise.slow_torque`): σ₀, its growth with the activity and with the pairing, and the
-    #: offset, of the speed, the current then the torque, one row per motor (NaN: not measured)
+    #: the slow look's noise (:data:`SLOW_NOISES`: :attr:`BandNoise.slow_speed`, ``slow_current``,
+    #: ``slow_torque``, ``slow_voltage``): σ₀, its growth with the activity and with the pairing, and the
+    #: offset of each, four columns each in that order, one row per motor (NaN: not measured)
     slow_table: NDArray[np.float64]
 
     def slow_deviations(
@@ -532,8 +546,8 @@ class NoiseRows(_ConditionsMath):
         with np.errstate(divide="ignore", invalid="ignore"):  # no usable current: σ infinite
             growth = speed / speed_there, current / current_there
         return (
-            self._slow_z(delta_omega_rad_s, 0, a, e, clamped, growth[0]),
-            self._slow_z(delta_current_a, 4, a, e, clamped, growth[1]),
+            self._slow_z(delta_omega_rad_s, "slow_speed", a, e, clamped, growth[0]),
+            self._slow_z(delta_current_a, "slow_current", a, e, clamped, growth[1]),
         )
 
     def slow_quiet(
@@ -544,18 +558,26 @@ class NoiseRows(_ConditionsMath):
         t = self.slow_table
         return t[:, 3:4], t[:, 7:8], t[:, 0:1], t[:, 4:5]
 
-    def slow_torque_within(
+    def slow_within(
         self,
+        name: str,
         activity_v: ArrayLike,
         pairing_error_rad_s: ArrayLike | None = None,
         margin: float = 0.0,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Each row's slow offset of the torque against its siblings [N·m] (a column), and its slow σ at each
-        sample's conditions held within those the noise was measured in (widened by ``margin``): what
-        identification measured there, none of the growth beyond (NaN: not measured)."""
+        """Each row's slow offset of one of :data:`SLOW_NOISES` (``"slow_torque"``: the torque against its
+        siblings [N·m]; ``"slow_voltage"``: the voltage against its siblings [V]), a column, and its slow σ
+        at each sample's conditions held within those the noise was measured in (widened by ``margin``):
+        what identification measured there, none of the growth beyond (NaN: not measured)."""
         a, e = _conditions(activity_v, pairing_error_rad_s)
-        sigma, per_activity, per_pairing, offset = (self.slow_table[:, k : k + 1] for k in range(8, 12))
+        sigma, per_activity, per_pairing, offset = self._slow_columns(name)
         return offset, _grown(sigma, per_activity, per_pairing, *self._within_conditions(a, e, margin))
+
+    def _slow_columns(self, name: str) -> tuple[NDArray[np.float64], ...]:
+        """σ₀, its growth with the activity and with the pairing, and the offset of one of
+        :data:`SLOW_NOISES`, each a column."""
+        first = 4 * SLOW_NOISES.index(name)
+        return tuple(self.slow_table[:, k : k + 1] for k in range(first, first + 4))
 
     def slow_torque_z(
         self,
@@ -570,7 +592,7 @@ class NoiseRows(_ConditionsMath):
         clamped = self._within_conditions(a, e, margin)
         with np.errstate(divide="ignore", invalid="ignore"):
             growth = self.torque_sigmas(a, e) / self.torque_sigmas(*clamped)
-        return self._slow_z(torque_nm, 8, a, e, clamped, growth)
+        return self._slow_z(torque_nm, "slow_torque", a, e, clamped, growth)
 
     def _within_conditions(
         self, a: NDArray[np.float64], e: NDArray[np.float64] | None, margin: float
@@ -587,7 +609,7 @@ class NoiseRows(_ConditionsMath):
     def _slow_z(
         self,
         values: NDArray[np.float64],
-        first: int,
+        name: str,
         a: NDArray[np.float64],
         e: NDArray[np.float64] | None,
         clamped: tuple[NDArray[np.float64], NDArray[np.float64] | None],
@@ -596,9 +618,7 @@ class NoiseRows(_ConditionsMath):
         """``values`` from the slow offset in units of the slow σ: σ(a, e) as measured, and beyond the
         conditions it was measured in never growing less than the fast look's σ grows from there (a slow
         noise measured flat in calm air is not flat in gusts: module doc, "The slow look's own noise")."""
-        sigma, per_activity, per_pairing, offset = (
-            self.slow_table[:, k : k + 1] for k in range(first, first + 4)
-        )
+        sigma, per_activity, per_pairing, offset = self._slow_columns(name)
         own = _grown(sigma, per_activity, per_pairing, a, e)
         from_limit = _grown(sigma, per_activity, per_pairing, *clamped) * np.where(
             np.isfinite(fast_growth), fast_growth, 1.0
@@ -659,12 +679,7 @@ class NoiseRows(_ConditionsMath):
         table = np.concatenate([n.after_step_table for n in noise]).reshape(-1, AFTER_STEP_BINS)
         torque = _equation_table([n.torque_judged for n in noise])
         own_torque = _equation_table([n.torque for n in noise])
-        slow = np.hstack(
-            [
-                _equation_table([getattr(n, name) for n in noise])
-                for name in ("slow_speed", "slow_current", "slow_torque")
-            ]
-        )
+        slow = np.hstack([_equation_table([getattr(n, name) for n in noise]) for name in SLOW_NOISES])
         voltage = _equation_table([n.voltage for n in noise])
         against = _equation_table([n.speed_vs_siblings for n in noise])
         against_table = np.concatenate([n.against_after_step_table for n in noise]).reshape(
@@ -782,6 +797,8 @@ class BandNoise(_ConditionsMath):
     slow_current: EquationNoise | None = None
     #: the torque against its siblings averaged as long (rules/equations.py): its healthy spread
     slow_torque: EquationNoise | None = None
+    #: the voltage balance against its siblings averaged as long (rules/voltage.py): its healthy spread
+    slow_voltage: EquationNoise | None = None
     #: the speed deviation's covariance with each motor's on the healthy flight [(rad/s)²], (motor
     #: number, covariance) in motor order, its own variance included (:mod:`.prediction`); empty: not
     #: measured
@@ -904,6 +921,7 @@ class BandNoise(_ConditionsMath):
             slow_speed=_equation_of(values, EQUATION_KEYS["slow_speed"]),
             slow_current=_equation_of(values, EQUATION_KEYS["slow_current"]),
             slow_torque=_equation_of(values, EQUATION_KEYS["slow_torque"]),
+            slow_voltage=_equation_of(values, EQUATION_KEYS["slow_voltage"]),
             speed_covariance=tuple(
                 (m, float(values[key])) for m, key in COVARIANCE_KEYS.items() if key in values
             ),
@@ -1092,8 +1110,9 @@ def measure_band_noise(
         slow_ready = column("slow_ready", bool)
         slow["slow_speed"] = column("omega_slow_judged_rad_s") - omega_model
         slow["slow_current"] = column("current_slow_judged_a") - column("current_model_a")
-        if all("torque_slow_nm" in d.names for d in tables):
-            slow["slow_torque"] = column("torque_slow_nm")
+        for name, key in (("slow_torque", "torque_slow_nm"), ("slow_voltage", "voltage_slow_v")):
+            if all(key in d.names for d in tables):
+                slow[name] = column(key)
 
     def noise_of(speed_rows: NDArray[np.bool_], current_rows: NDArray[np.bool_]) -> BandNoise:
         e_speed = None if pairing is None else pairing[speed_rows]
@@ -1137,6 +1156,7 @@ def measure_band_noise(
             slow_speed=own_equations.get("slow_speed"),
             slow_current=own_equations.get("slow_current"),
             slow_torque=own_equations.get("slow_torque"),
+            slow_voltage=own_equations.get("slow_voltage"),
         )
 
     if np.count_nonzero(judged) < MIN_MOTOR_SAMPLES:

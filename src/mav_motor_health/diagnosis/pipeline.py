@@ -268,7 +268,10 @@ def vehicle_stage(
     """The vehicle stage of ``motors`` (:mod:`.siblings`), with what it takes across them: the torque
     where a motor is judged against its siblings' (its noise was measured so), the deviations' live
     noise where ``profile`` grows its bands as the siblings run (``conditions_siblings``), each motor's slow
-    torque average where its slow look is bounded by the siblings' spread (``torque_slow_siblings``), the speed
+    torque average where its slow look is bounded by the siblings' spread (``torque_slow_siblings``), the
+    voltage residual where the balances are read apart (``equation_bands``) and the noise has the voltage's,
+    each motor's slow voltage average's mean square where an open transistor is read in it
+    (``voltage_slow_siblings``, :mod:`.rules.voltage`), the speed
     deviation where it judges the speed against the siblings' prediction (``speed_against_siblings``) and
     the noise gives their covariance (:mod:`.prediction`; a sibling departing by more than the sequential
     test's reference σ is left out of the others'); None: none of them, no stage. Motors not in
@@ -284,6 +287,12 @@ def vehicle_stage(
             quantities += ["slow_ms_speed", "slow_ms_current"]
         if profile.torque_slow_as_siblings and "torque_residual_nm" in quantities:
             quantities.append("torque_slow_raw_nm")
+        if profile.equation_bands > 0 and any(n.voltage is not None for n in noise.values()):
+            # the voltage against its siblings, averaged slowly (rules/equations.py): identification
+            # measures its noise, and an open transistor is read in it where the profile asks (rules/voltage.py)
+            quantities.append("voltage_residual_v")
+        if profile.voltage_slow_as_siblings:
+            quantities.append("slow_ms_voltage")
         if profile.speed_against_siblings > 0:
             prediction = SiblingPrediction.of(
                 {m: n.speed_covariance for m, n in noise.items()},
@@ -296,13 +305,9 @@ def vehicle_stage(
                 _warn_without_prediction(profile)
     if not quantities:
         return None
-    # the torque against siblings at its own speed, within the margin the model is trusted beyond its
-    # identified speeds (siblings.py, "Beyond the identified speeds")
-    alike = (
-        {"torque_residual_nm": profile.range_margin, "torque_slow_raw_nm": profile.range_margin}
-        if profile.range_margin > 0
-        else {}
-    )
+    # the balances against siblings at the motor's own speed, within the margin the model is trusted beyond
+    # its identified speeds (siblings.py, "Beyond the identified speeds")
+    alike = {q: profile.range_margin for q in RESIDUAL_QUANTITIES} if profile.range_margin > 0 else {}
     # the siblings' torque spread, where the bands grow with it (rules/bands.py), and their slow torque
     # averages' spread, where the torque's slow look is bounded by it (rules/equations.py)
     spreads: tuple[str, ...] = ("torque_residual_nm",) if profile.torque_siblings_spread > 0 else ()
@@ -314,6 +319,11 @@ def vehicle_stage(
         prediction=prediction,
         spreads=tuple(s for s in spreads if s in quantities),
     )
+
+
+#: the stage's quantities taken at the motor's own speed beyond the identified ones (the balances' residuals
+#: and the torque's slow average: siblings.py, "Beyond the identified speeds")
+RESIDUAL_QUANTITIES = ("torque_residual_nm", "torque_slow_raw_nm", "voltage_residual_v")
 
 
 def _warn_without_prediction(profile: ThresholdProfile) -> None:
@@ -582,6 +592,7 @@ def _result_columns(frame: Frame) -> dict[str, NDArray]:
         "torque_siblings_nm": nan_unless(frame.torque_siblings_nm),
         "voltage_residual_v": nan_unless(frame.voltage_residual_v),
         "torque_slow_nm": nan_unless(frame.torque_slow_nm),
+        "voltage_slow_v": nan_unless(frame.voltage_slow_v),
         "speed_siblings_rad_s": nan_unless(frame.speed_siblings_rad_s),
         "torque_band_nm": nan_unless(frame.torque_band_nm),
     }
@@ -615,6 +626,7 @@ _RESULT_COLUMNS = (
     "since_step_s",
     *RESIDUAL_COLUMNS,
     "torque_slow_nm",
+    "voltage_slow_v",
     "speed_siblings_rad_s",
     "torque_band_nm",
 )
@@ -748,6 +760,7 @@ def diagnose(
         "torque_siblings_nm": np.full(n, np.nan),
         "voltage_residual_v": np.full(n, np.nan),
         "torque_slow_nm": np.full(n, np.nan),
+        "voltage_slow_v": np.full(n, np.nan),
         "speed_siblings_rad_s": np.full(n, np.nan),
         "torque_band_nm": np.full(n, np.nan),
     }
@@ -893,6 +906,7 @@ def diagnose(
         torque_siblings_nm=out["torque_siblings_nm"],
         voltage_residual_v=out["voltage_residual_v"],
         torque_slow_nm=out["torque_slow_nm"],
+        voltage_slow_v=out["voltage_slow_v"],
         speed_siblings_rad_s=out["speed_siblings_rad_s"],
         torque_band_nm=out["torque_band_nm"],
         vehicle_fit=vehicle_fit,

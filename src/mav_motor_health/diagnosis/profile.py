@@ -173,6 +173,13 @@ class ThresholdProfile:
     look's wait after an input step included (:mod:`.rules.equations`, "The torque's slow look as its
     siblings run"). 0, the default: the
     torque's slow look as wide as the fast torque's band holds of its σ, its growth included.
+    ``voltage_slow_siblings`` (m > 0, with ``conditions_siblings``, ``equation_bands`` and
+    ``slow_band_fraction``): an open transistor (F4.1) is also read in the voltage balance against its
+    siblings, averaged slowly (:class:`~.rules.voltage.VoltageSlowLook`), against m times the spread of the
+    other motors' slow voltage averages around their median (low-passed over ``conditions_siblings_s``;
+    never below the motor's own slow σ of it at the sample's conditions held within those identification
+    measured), times ``equation_bands`` and ``slow_band_fraction`` (:mod:`.rules.voltage`). 0, the default:
+    the open transistor read from the speed and current deviations alone.
     ``equation_bands`` (n > 0, with ``noise_bands``): friction (F1.1) and a lighter propeller (F3.1),
     which move the model's torque balance alone, are judged in it, against n times its own noise, which
     identification measured (:mod:`.rules.equations`; not where the ESC reports its input current, whose
@@ -210,6 +217,7 @@ class ThresholdProfile:
     torque_siblings_spread: float = 0.0
     slow_siblings: float = 0.0
     torque_slow_siblings: float = 0.0
+    voltage_slow_siblings: float = 0.0
     equation_bands: float = 0.0
     speed_against_siblings: float = 0.0
     steady: CompareRule = field(default_factory=StepRule)
@@ -347,6 +355,12 @@ class ThresholdProfile:
                 key="torque_slow_siblings",
                 expected="a multiple 0..100 of the siblings' slow torque spread (0: not used)",
             )
+        if not 0 <= self.voltage_slow_siblings <= 100:
+            raise ConfigError(
+                f"{self.voltage_slow_siblings!r}",
+                key="voltage_slow_siblings",
+                expected="a multiple 0..100 of the siblings' slow voltage spread (0: not used)",
+            )
         if not 0 < self.conditions_siblings_s <= 600:
             raise ConfigError(
                 f"{self.conditions_siblings_s!r}",
@@ -393,6 +407,7 @@ class ThresholdProfile:
         from .rules.pairing import PairingGuard, PairingLimits
         from .rules.sensors import SensorCheck
         from .rules.tree import SlowLook, Tree
+        from .rules.voltage import VoltageSlowLook
 
         return (
             self.steady,
@@ -405,6 +420,7 @@ class ThresholdProfile:
             Tree(self),
             *([Equations(self)] if self.equation_bands > 0 else []),
             SlowLook(self.slow_band_fraction, self.joint_band_sum),
+            *([VoltageSlowLook(self)] if self.voltage_slow_as_siblings else []),
             *([TorqueSlowLook(self)] if self.equation_bands > 0 and self.slow_band_fraction > 0 else []),
             Judged(self),
             *([Sequential(self)] if self.detection.on else []),
@@ -471,6 +487,18 @@ class ThresholdProfile:
         slowly before the vehicle stage, which gives the spread."""
         return (
             self.torque_slow_siblings > 0
+            and self.slow_band_fraction > 0
+            and self.equation_bands > 0
+            and self.grows_as_siblings
+        )
+
+    @property
+    def voltage_slow_as_siblings(self) -> bool:
+        """Whether an open transistor is also read in the voltage balance's slow average against its
+        siblings (``voltage_slow_siblings``, :mod:`.rules.voltage`): the live noise averages each motor's
+        voltage residual slowly before the vehicle stage, which gives the spread."""
+        return (
+            self.voltage_slow_siblings > 0
             and self.slow_band_fraction > 0
             and self.equation_bands > 0
             and self.grows_as_siblings

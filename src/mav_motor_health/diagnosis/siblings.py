@@ -67,7 +67,8 @@ air of this instant, measured on the siblings alone (the motor's own departure n
 a faulty sibling among five moves a median absolute deviation as little as it moves the median. Where the
 profile bounds the torque's slow look by its siblings (``torque_slow_siblings``, :mod:`.rules.equations`),
 the same for each motor's slow average of its torque residual (``torque_slow_raw_nm``), taken like the
-torque: a sibling beyond its identified speeds only at the motor's own speed.
+torque: a sibling beyond its identified speeds only at the motor's own speed. The voltage residual alike
+(:mod:`.rules.voltage`).
 """
 
 from __future__ import annotations
@@ -95,6 +96,8 @@ STAGE_QUANTITIES = (
     ("slow_ms_speed", "siblings_slow_ms_speed"),
     ("slow_ms_current", "siblings_slow_ms_current"),
     ("torque_slow_raw_nm", "siblings_torque_slow_nm"),
+    ("voltage_residual_v", "voltage_siblings_v"),
+    ("slow_ms_voltage", "siblings_slow_ms_voltage"),
 )
 #: the quantities whose siblings' spread the stage also gives, where asked (:attr:`VehicleStage.spreads`):
 #: the quantity, and the frame field the spread goes to (module doc, "The siblings' spread")

@@ -30,7 +30,10 @@ identified σ(a, e) (m = ``torque_siblings_spread``), never less than 1 and neve
 deviations' growth. Where the profile bounds the torque's slow look by its siblings
 (``torque_slow_siblings``), :class:`LiveNoise` also averages each motor's torque residual slowly for the
 stage, and :class:`SiblingBands` low-passes the spread of the siblings' slow averages alike
-(:mod:`..rules.equations`, "The torque's slow look as its siblings run").
+(:mod:`..rules.equations`, "The torque's slow look as its siblings run"); where an open transistor is read
+in the voltage balance's slow average (``voltage_slow_siblings``), the voltage residual too, and that slow
+average's mean squared departure from the motor's voltage offset, whose median over the siblings the
+vehicle stage gives (:mod:`..rules.voltage`).
 """
 
 from __future__ import annotations
@@ -98,37 +101,78 @@ class LiveNoise(Rule):
     def new_carry(self) -> Any:
         # (time, value) of the speed's and the current's low-pass, then (slow_siblings) the slow averages'
         # counted means' (time, sum, weight) of the speed and the current and the row's last sample time,
-        # then (torque_slow_siblings) the slow torque average's (time, value)
+        # then (torque_slow_siblings) the slow torque average's (time, value), then (voltage_slow_siblings)
+        # the slow voltage average's
         return (math.nan,) * self._widths()[-1]
 
-    def _widths(self) -> tuple[int, int, int]:
-        """Where each part of a row's carry ends: the fast low-passes, the slow squares, the slow torque."""
+    def _widths(self) -> tuple[int, int, int, int]:
+        """Where each part of a row's carry ends: the fast low-passes, the slow squares, the slow torque,
+        the slow voltage."""
         slow = 4 + (SLOW_CARRY if self.profile.slow_as_siblings else 0)
-        return 4, slow, slow + (2 if self.profile.torque_slow_as_siblings else 0)
+        torque = slow + (2 if self.profile.torque_slow_as_siblings else 0)
+        return 4, slow, torque, torque + (VOLTAGE_CARRY if self.profile.voltage_slow_as_siblings else 0)
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
         profile = self.profile
         _noise_of(frame, profile)  # each motor has its noise (else a clear error)
-        fast_end, slow_end, torque_end = self._widths()
+        fast_end, slow_end, torque_end, voltage_end = self._widths()
         parts = [self._fast(frame, [c[:fast_end] for c in carries])]
         if profile.slow_as_siblings:
             parts.append(self._slow_squares(frame, [c[fast_end:slow_end] for c in carries]))
         if profile.torque_slow_as_siblings:
-            parts.append(self._slow_torque(frame, [c[slow_end:torque_end] for c in carries]))
+            parts.append(self._slow_raw(frame, "torque", [c[slow_end:torque_end] for c in carries]))
+        if profile.voltage_slow_as_siblings:
+            parts.append(self._slow_voltage_square(frame, [c[torque_end:voltage_end] for c in carries]))
         return [sum(row, ()) for row in zip(*parts)]
 
-    def _slow_torque(self, frame: Frame, carries: list[Any]) -> list[tuple[float, ...]]:
-        """``torque_slow_raw_nm``: each motor's torque residual averaged over its judged samples in its
-        identified speeds with ``slow_factor`` times the deviations' low-pass time, as the torque's slow
-        look averages the torque against its siblings (rules/equations.py), NaN where not counted: the
-        vehicle stage gives the spread of the siblings' (rules/equations.py, "The torque's slow look as
-        its siblings run"); each row's carry advanced."""
-        torque = frame.torque_residual_nm
-        if torque is None:
-            frame.torque_slow_raw_nm = None
+    def _slow_voltage_square(self, frame: Frame, carries: list[Any]) -> list[tuple[float, ...]]:
+        """``voltage_slow_raw_v`` (:meth:`_slow_raw`) and ``slow_ms_voltage``: that slow average's squared
+        departure from the motor's voltage offset, averaged over ``conditions_siblings_s`` of its counted
+        samples (NaN until it holds one time constant's worth, :func:`counted_mean`), which the vehicle
+        stage takes the median of (rules/voltage.py); each row's carry advanced (:data:`VOLTAGE_CARRY`)."""
+        raw = self._slow_raw(frame, "voltage", [c[:2] for c in carries])
+        averaged = frame.voltage_slow_raw_v
+        c = np.array([tuple(x[2:]) for x in carries], dtype=float).reshape(frame.shape[0], 4)
+        if averaged is None:
+            frame.slow_ms_voltage = None
+            return [r + tuple(x) for r, x in zip(raw, c.tolist())]
+        x2 = (averaged - frame.noise_as_rows().voltage_offset) ** 2
+        counted = np.isfinite(x2)
+        mean, last_t, last_sum, last_weight = counted_mean(
+            frame.time_s,
+            np.where(counted, x2, 0.0),
+            counted,
+            self.profile.conditions_siblings_s,
+            c[:, 0],
+            c[:, 1],
+            c[:, 2],
+            c[:, 3],
+        )
+        frame.slow_ms_voltage = mean
+        ends = last_of(frame.time_s, frame.counts)
+        seen = [c[r, 3] if end is None else end for r, end in enumerate(ends)]
+        return [raw[r] + (last_t[r], last_sum[r], last_weight[r], seen[r]) for r in range(frame.shape[0])]
+
+    def _slow_raw(self, frame: Frame, balance: str, carries: list[Any]) -> list[tuple[float, ...]]:
+        """``torque_slow_raw_nm`` (``balance`` "torque") or ``voltage_slow_raw_v`` ("voltage"): each motor's
+        balance residual averaged over its judged samples in its identified speeds with ``slow_factor``
+        times the deviations' low-pass time, as the slow looks average the balance against its siblings
+        (rules/equations.py), NaN where not counted: the vehicle stage gives the spread of the siblings'
+        (rules/equations.py, "The torque's slow look as its siblings run"; rules/voltage.py); each row's
+        carry advanced."""
+        residual, into = (
+            (frame.torque_residual_nm, "torque_slow_raw_nm")
+            if balance == "torque"
+            else (frame.voltage_residual_v, "voltage_slow_raw_v")
+        )
+        if residual is None:
+            setattr(frame, into, None)
             return [tuple(c) for c in carries]
-        counted = _live_samples(frame) & np.isfinite(torque)
-        frame.torque_slow_raw_nm, advanced = slow_average(frame, torque, counted, carries)
+        counted = _live_samples(frame) & np.isfinite(residual)
+        if balance == "voltage":  # as the voltage look reads it: with a trusted current (rules/voltage.py)
+            counted &= frame.current_trusted()
+        averaged, advanced = slow_average(frame, residual, counted, carries)
+        setattr(frame, into, averaged)
         return advanced
 
     def _slow_squares(self, frame: Frame, carries: list[Any]) -> list[tuple[float, ...]]:
@@ -220,6 +264,9 @@ class LiveNoise(Rule):
 #: what a row carries between calls for each of its slow averages' counted means (speed, then current):
 #: (last counted time, sum, weight) each, then the row's last sample time
 SLOW_CARRY = 7
+#: what a row carries for its slow voltage average (last counted time, value) and that average's counted
+#: mean square (last counted time, sum, weight, the row's last sample time): rules/voltage.py
+VOLTAGE_CARRY = 6
 #: a counted mean is a reference only once its weight is this: one time constant's worth of counted
 #: samples, not the few of a moment nor what a long gap has faded
 COUNTED_WEIGHT_MIN = 1.0 - math.exp(-1.0)
@@ -422,28 +469,36 @@ class SiblingBands(Bands):
     reads_siblings: ClassVar[bool] = True
 
     def new_carry(self) -> Any:
-        # the low-passed siblings' torque spread: its last counted time and value; then (torque_slow_siblings)
-        # the low-passed spread of their slow torque averages, the same
-        return (math.nan,) * (4 if self.profile.torque_slow_as_siblings else 2)
+        # each low-passed spread's last counted time and value: the siblings' torque spread, then
+        # (torque_slow_siblings) the spread of their slow torque averages
+        return (math.nan,) * (2 * len(self._spreads()))
+
+    def _spreads(self) -> list[tuple[str, str, bool]]:
+        """The spreads low-passed, in the carry's order: the stage's field, the low-passed field, and
+        whether the profile asks for it."""
+        profile = self.profile
+        spreads = [("torque_siblings_spread_nm", "torque_spread_low_nm", profile.torque_siblings_spread > 0)]
+        if profile.torque_slow_as_siblings:
+            spreads.append(("siblings_torque_slow_spread_nm", "torque_slow_spread_low_nm", True))
+        return spreads
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
         rows = frame.shape[0]
         carried = np.array([c if c is not None else self.new_carry() for c in carries], dtype=float)
         carried = carried.reshape(rows, -1)
         frame.torque_spread_low_nm = frame.torque_slow_spread_low_nm = None
-        out = [tuple(c) for c in carried.tolist()]
-        if frame.torque_siblings_spread_nm is not None and self.profile.torque_siblings_spread > 0:
-            frame.torque_spread_low_nm, fast = self._held(
-                frame, frame.torque_siblings_spread_nm, carried[:, :2]
-            )
-            out = [f + tuple(c[2:]) for f, c in zip(fast, out)]
-        if frame.siblings_torque_slow_spread_nm is not None and self.profile.torque_slow_as_siblings:
-            frame.torque_slow_spread_low_nm, slow = self._held(
-                frame, frame.siblings_torque_slow_spread_nm, carried[:, 2:4]
-            )
-            out = [tuple(c[:2]) + s for s, c in zip(slow, out)]
+        parts = []
+        for k, (given, into, asked) in enumerate(self._spreads()):
+            part = carried[:, 2 * k : 2 * k + 2]
+            spread = getattr(frame, given)
+            if spread is None or not asked:
+                parts.append([tuple(c) for c in part.tolist()])
+                continue
+            low, advanced = self._held(frame, spread, part)
+            setattr(frame, into, low)
+            parts.append(advanced)
         super().judge(frame, carries)
-        return out
+        return [sum(row, ()) for row in zip(*parts)]
 
     def _held(
         self, frame: Frame, spread: NDArray[np.float64], carried: NDArray[np.float64]

@@ -124,6 +124,9 @@ class Frame:
     #: the spread of the siblings' slow torque averages low-passed alike (rules/equations.py, "The torque's
     #: slow look as its siblings run")
     torque_slow_spread_low_nm: NDArray[np.float64] | None = None
+    #: the median of the other motors' voltage residuals before each sample [V] (the vehicle stage; None:
+    #: no stage took it, NaN: too few siblings there; rules/voltage.py)
+    voltage_siblings_v: NDArray[np.float64] | None = None
     #: each motor's identified σ(a, e) at each sample, speed [rad/s] and current [A] (rules/bands.py,
     #: where the live noise is measured before the bands; None: worked out by the bands)
     sigma_speed_rad_s: NDArray[np.float64] | None = None
@@ -150,6 +153,13 @@ class Frame:
     torque_slow_raw_nm: NDArray[np.float64] | None = None
     siblings_torque_slow_nm: NDArray[np.float64] | None = None
     siblings_torque_slow_spread_nm: NDArray[np.float64] | None = None
+    #: each motor's voltage residual averaged alike [V], that average's squared departure from the motor's
+    #: voltage offset averaged over ``conditions_siblings_s`` [V²] (the live noise, where the profile's
+    #: ``voltage_slow_siblings`` asks for it; None: not measured), and the median of the other motors'
+    #: latest (the vehicle stage; NaN: too few there; rules/voltage.py)
+    voltage_slow_raw_v: NDArray[np.float64] | None = None
+    slow_ms_voltage: NDArray[np.float64] | None = None
+    siblings_slow_ms_voltage: NDArray[np.float64] | None = None
     #: the siblings' linear prediction of each sample's speed deviation [rad/s] (the vehicle stage,
     #: :mod:`..prediction`; None: not predicted, NaN: a sibling's value missing there); where the profile's
     #: ``speed_against_siblings`` judges against it, ``omega_judged_rad_s`` has it taken off (:mod:`.against`)
@@ -197,6 +207,9 @@ class Frame:
     #: the judged torque (against its siblings) averaged as long as the slow look averages the deviations,
     #: NaN where it was not judged (:mod:`.equations`, "The slow look"); None: no slow look
     torque_slow_nm: NDArray[np.float64] | None = None
+    #: the voltage residual against its siblings' median averaged alike, NaN where not counted [V]
+    #: (:mod:`.equations`; rules/voltage.py); None: no slow look or no siblings' voltage
+    voltage_slow_v: NDArray[np.float64] | None = None
     #: where the slow look named a sample (:mod:`.tree`, :mod:`.equations`), its departure in the named
     #: direction in σ of the bands as the fast look's evidence counts it, NaN elsewhere; None: none named
     slow_evidence: NDArray[np.float64] | None = None

@@ -136,9 +136,16 @@ class Equations(Rule):
     profile: ThresholdProfile
 
     def new_carry(self) -> Any:
-        return (math.nan, math.nan)  # the slow average's last counted time and value
+        # the slow averages' last counted time and value: the torque's, then the voltage's (rules/voltage.py)
+        return (math.nan,) * 4
 
     def judge(self, frame: Frame, carries: list[Any]) -> list[Any]:
+        torque_carries = self._torque(frame, [tuple(c[:2]) for c in carries])
+        voltage_carries = self._slow_voltage(frame, [tuple(c[2:4]) for c in carries])
+        return [tuple(t) + tuple(v) for t, v in zip(torque_carries, voltage_carries)]
+
+    def _torque(self, frame: Frame, carries: list[Any]) -> list[Any]:
+        """The torque balance read (class doc); each row's carry of its slow average advanced."""
         noise, band = frame.noise, frame.torque_band_nm
         if band is None or noise is None or frame.torque_residual_nm is None:
             return carries
@@ -163,7 +170,9 @@ class Equations(Rule):
         # averaged wherever a torque against the siblings is read, judged or not (identification measures
         # the average's noise with no band at all)
         available = holds & siblings & frame.current_trusted() & np.isfinite(torque)
-        carries = self._slow_average(frame, torque, available, carries)
+        torque_slow, carries = self._slow_average(frame, torque, available, carries)
+        if torque_slow is not None:
+            frame.torque_slow_nm = torque_slow
         reread = judged & one_of(state, REREAD)
         if not reread.any():
             return carries
@@ -207,21 +216,32 @@ class Equations(Rule):
             grown = band / (self.profile.equation_bands * rows.torque_sigmas(a, e))
             return (residual - rows.voltage_offset) / (rows.voltage_sigmas(a, e) * grown)
 
-    def _slow_average(
-        self, frame: Frame, torque: NDArray[np.float64], available: NDArray[np.bool_], carries: list[Any]
-    ) -> list[Any]:
-        """``frame.torque_slow_nm``: the torque against its siblings, averaged over the steady
-        samples with ``slow_factor`` times the deviations' low-pass time (module doc, "The slow look");
-        each row's carry advanced. Nothing where the profile has no slow look."""
-        if frame.slow is None:
+    def _slow_voltage(self, frame: Frame, carries: list[Any]) -> list[Any]:
+        """``frame.voltage_slow_v``: the voltage residual less the median of its siblings' (the vehicle
+        stage's), averaged as the torque against its siblings is, wherever the current is trusted and the
+        motor's noise has the voltage's (identification measures the average's noise, rules/voltage.py);
+        each row's carry advanced. Nothing where the stage gave no siblings' voltage."""
+        reference, residual, noise = frame.voltage_siblings_v, frame.voltage_residual_v, frame.noise
+        if reference is None or residual is None or noise is None:
             return carries
+        voltage = residual - reference
+        holds = np.array([m.voltage is not None for m in noise])[:, None]
+        available = holds & frame.current_trusted() & np.isfinite(voltage)
+        averaged, carries = self._slow_average(frame, voltage, available, carries)
+        frame.voltage_slow_v = averaged
+        return carries
+
+    def _slow_average(
+        self, frame: Frame, values: NDArray[np.float64], available: NDArray[np.bool_], carries: list[Any]
+    ) -> tuple[NDArray[np.float64] | None, list[Any]]:
+        """``values`` averaged over the steady samples with ``slow_factor`` times the deviations' low-pass
+        time (module doc, "The slow look"), NaN where not counted, and each row's carry advanced; None and
+        the carries as given where the profile has no slow look."""
+        if frame.slow is None:
+            return None, carries
         width = frame.shape[1]
         counted = available & frame.steady & (np.arange(width)[None, :] < np.asarray(frame.counts)[:, None])
-        averaged, advanced = slow_average(frame, torque, counted, carries)
-        if averaged is None:
-            return carries
-        frame.torque_slow_nm = averaged
-        return advanced
+        return slow_average(frame, values, counted, carries)
 
 
 @dataclass(frozen=True)
@@ -287,7 +307,7 @@ class TorqueSlowLook(Rule):
             return None
         rows = frame.noise_as_rows()
         a = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
-        offset, measured = rows.slow_torque_within(a, frame.pairing_error_rad_s, profile.range_margin)
+        offset, measured = rows.slow_within("slow_torque", a, frame.pairing_error_rad_s, profile.range_margin)
         reach = profile.equation_bands * profile.slow_band_fraction * profile.torque_slow_siblings
         # in the identified speeds by the model speed or the speed it turns (rules/tree.py, the same rule)
         turning = frame.omega_mean_rad_s if frame.omega_mean_rad_s is not None else frame.omega_rad_s
