@@ -40,7 +40,8 @@ siblings take the place of the extrapolation beyond it, as for the torque), with
 its slow speed and current averages not above its model: the paper's directions (an open transistor
 slows its motor and draws less current; friction slows it and draws more, and where the model's R is off
 the voltage balance moves with the current: on held-out world 1013 friction in moderate air was named
-F4.1 here on 6 % of its samples before the current was asked to agree). Only in the motor's
+F4.1 here on 6 % of its samples before the current was asked to agree). Judged wherever the slow look
+may judge, in the wait after an input step too, as the torque's slow look is. Only in the motor's
 identified speeds (by its model speed or the speed it turns) and where three siblings give a mean square;
 no band of the motor's own beyond its conditions: where the siblings give none, the deviations alone read
 it. Below its offset the voltage balance names nothing: no fault of the five gives a motor more voltage
