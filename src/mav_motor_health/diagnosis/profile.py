@@ -86,6 +86,16 @@ class PersistenceRule:
         return holds
 
 
+#: the profile's multiples of what the siblings show (0..100, 0: not used), and what each multiplies
+SIBLING_MULTIPLES = {
+    "conditions_siblings": "the siblings' deviations in their noise",
+    "torque_siblings_spread": "the siblings' torque spread",
+    "slow_siblings": "the siblings' slow deviations",
+    "torque_slow_siblings": "the siblings' slow torque spread",
+    "voltage_slow_siblings": "the siblings' slow voltage spread",
+}
+
+
 @dataclass(frozen=True)
 class ThresholdProfile:
     """The limits of the decision tree (Fig. 7) and the rules around it.
@@ -331,36 +341,11 @@ class ThresholdProfile:
                 key="conditions_growth",
                 expected="an exponent 0..4 of the bands' growth beyond the identified flight's conditions",
             )
-        if not 0 <= self.conditions_siblings <= 100:
-            raise ConfigError(
-                f"{self.conditions_siblings!r}",
-                key="conditions_siblings",
-                expected="a multiple 0..100 of the siblings' deviations in their noise (0: not used)",
-            )
-        if not 0 <= self.torque_siblings_spread <= 100:
-            raise ConfigError(
-                f"{self.torque_siblings_spread!r}",
-                key="torque_siblings_spread",
-                expected="a multiple 0..100 of the siblings' torque spread (0: not used)",
-            )
-        if not 0 <= self.slow_siblings <= 100:
-            raise ConfigError(
-                f"{self.slow_siblings!r}",
-                key="slow_siblings",
-                expected="a multiple 0..100 of the siblings' slow deviations (0: not used)",
-            )
-        if not 0 <= self.torque_slow_siblings <= 100:
-            raise ConfigError(
-                f"{self.torque_slow_siblings!r}",
-                key="torque_slow_siblings",
-                expected="a multiple 0..100 of the siblings' slow torque spread (0: not used)",
-            )
-        if not 0 <= self.voltage_slow_siblings <= 100:
-            raise ConfigError(
-                f"{self.voltage_slow_siblings!r}",
-                key="voltage_slow_siblings",
-                expected="a multiple 0..100 of the siblings' slow voltage spread (0: not used)",
-            )
+        for key, of in SIBLING_MULTIPLES.items():
+            if not 0 <= getattr(self, key) <= 100:
+                raise ConfigError(
+                    f"{getattr(self, key)!r}", key=key, expected=f"a multiple 0..100 of {of} (0: not used)"
+                )
         if not 0 < self.conditions_siblings_s <= 600:
             raise ConfigError(
                 f"{self.conditions_siblings_s!r}",

@@ -120,7 +120,10 @@ class LiveNoise(Rule):
         if profile.slow_as_siblings:
             parts.append(self._slow_squares(frame, [c[fast_end:slow_end] for c in carries]))
         if profile.torque_slow_as_siblings:
-            parts.append(self._slow_raw(frame, "torque", [c[slow_end:torque_end] for c in carries]))
+            frame.torque_slow_raw_nm, torque = self._slow_raw(
+                frame, frame.torque_residual_nm, [c[slow_end:torque_end] for c in carries]
+            )
+            parts.append(torque)
         if profile.voltage_slow_as_siblings:
             parts.append(self._slow_voltage_square(frame, [c[torque_end:voltage_end] for c in carries]))
         return [sum(row, ()) for row in zip(*parts)]
@@ -130,8 +133,11 @@ class LiveNoise(Rule):
         departure from the motor's voltage offset, averaged over ``conditions_siblings_s`` of its counted
         samples (NaN until it holds one time constant's worth, :func:`counted_mean`), which the vehicle
         stage takes the median of (rules/voltage.py); each row's carry advanced (:data:`VOLTAGE_CARRY`)."""
-        raw = self._slow_raw(frame, "voltage", [c[:2] for c in carries])
-        averaged = frame.voltage_slow_raw_v
+        # as the voltage look reads it: with a trusted current (rules/voltage.py)
+        averaged, raw = self._slow_raw(
+            frame, frame.voltage_residual_v, [c[:2] for c in carries], trusted=True
+        )
+        frame.voltage_slow_raw_v = averaged
         c = np.array([tuple(x[2:]) for x in carries], dtype=float).reshape(frame.shape[0], 4)
         if averaged is None:
             frame.slow_ms_voltage = None
@@ -153,27 +159,21 @@ class LiveNoise(Rule):
         seen = [c[r, 3] if end is None else end for r, end in enumerate(ends)]
         return [raw[r] + (last_t[r], last_sum[r], last_weight[r], seen[r]) for r in range(frame.shape[0])]
 
-    def _slow_raw(self, frame: Frame, balance: str, carries: list[Any]) -> list[tuple[float, ...]]:
-        """``torque_slow_raw_nm`` (``balance`` "torque") or ``voltage_slow_raw_v`` ("voltage"): each motor's
-        balance residual averaged over its judged samples in its identified speeds with ``slow_factor``
-        times the deviations' low-pass time, as the slow looks average the balance against its siblings
-        (rules/equations.py), NaN where not counted: the vehicle stage gives the spread of the siblings'
-        (rules/equations.py, "The torque's slow look as its siblings run"; rules/voltage.py); each row's
-        carry advanced."""
-        residual, into = (
-            (frame.torque_residual_nm, "torque_slow_raw_nm")
-            if balance == "torque"
-            else (frame.voltage_residual_v, "voltage_slow_raw_v")
-        )
+    def _slow_raw(
+        self, frame: Frame, residual: NDArray[np.float64] | None, carries: list[Any], trusted: bool = False
+    ) -> tuple[NDArray[np.float64] | None, list[tuple[float, ...]]]:
+        """A balance's ``residual`` averaged over each motor's judged samples in its identified speeds
+        (``trusted``: with a trusted current only) with ``slow_factor`` times the deviations' low-pass time,
+        as the slow looks average the balance against its siblings (rules/equations.py), NaN where not
+        counted: the vehicle stage gives the spread of the siblings' torque (rules/equations.py, "The
+        torque's slow look as its siblings run") and the voltage's mean square (rules/voltage.py); None
+        without a residual; each row's carry advanced."""
         if residual is None:
-            setattr(frame, into, None)
-            return [tuple(c) for c in carries]
+            return None, [tuple(c) for c in carries]
         counted = _live_samples(frame) & np.isfinite(residual)
-        if balance == "voltage":  # as the voltage look reads it: with a trusted current (rules/voltage.py)
+        if trusted:
             counted &= frame.current_trusted()
-        averaged, advanced = slow_average(frame, residual, counted, carries)
-        setattr(frame, into, averaged)
-        return advanced
+        return slow_average(frame, residual, counted, carries)
 
     def _slow_squares(self, frame: Frame, carries: list[Any]) -> list[tuple[float, ...]]:
         """``slow_ms_speed`` and ``slow_ms_current``: each motor's slow averages' squared deviation from its
