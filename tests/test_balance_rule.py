@@ -14,7 +14,9 @@ from mav_motor_health.diagnosis.steady import warm_mask
 from mav_motor_health.diagnosis.tuning import _activity_band
 from mav_motor_health.evaluation.campaign import FlightCase, run_flights
 from mav_motor_health.model.balance import (
+    BalanceCarry,
     balance_deviations,
+    balance_deviations_rows,
     censored_mean,
     input_activity,
     linearised_slopes,
@@ -415,6 +417,60 @@ def test_a_command_that_dips_between_two_samples_is_as_active_as_one_that_zigzag
         motor, t, np.full(t.size, 7.0), w, i, 0.15, 0.5, input_excursion_v=np.full(t.size, np.nan)
     )
     assert missing.activity_v[-1] == 0.0
+
+
+def test_the_step_allowance_over_changes_sees_a_command_that_zigzags_between_repeated_reports(motor) -> None:
+    """An ESC reporting five times per command (50 Hz reports, commands at 10 Hz, as on held-out world
+    1009) of a command that zigzags by ±0.5 V: most samples repeat the input, so the samples' own zigzag
+    (the activity, the step's allowance by default) sees a change next to a repeat, never two changes;
+    over the command's changes (``steady.step_over_changes``, an option) the allowance is 1 V, as at one
+    report per command, and the bus voltage's wobble at every sample does not hide it where the command is
+    given. A staircase (changes of one sign) is no zigzag. Calls of any length give the same allowance
+    (the live agent's batches)."""
+    t = np.arange(0.0, 20.0, 0.02)
+    update = np.arange(t.size) // 5
+    command = 0.5 + 0.5 / 14.0 * (-1.0) ** update  # ±0.5 V on a 14 V bus
+    bus = 14.0 + 0.002 * np.sin(2.0 * np.pi * 7.0 * t)  # a little sag at every sample
+    v = command * bus
+    w = steady_state(motor, np.full(t.size, 7.0)).omega_rad_s
+    i = np.full(t.size, 5.0)
+
+    def allowance(volts, cmd, cuts=(0, t.size), over_changes=True):
+        carry, parts = [BalanceCarry()], []
+        for a, b in zip(cuts, cuts[1:]):
+            part, carry = balance_deviations_rows(
+                motor,
+                t[None, a:b],
+                volts[None, a:b],
+                w[None, a:b],
+                i[None, a:b],
+                0.15,
+                0.5,
+                carry,
+                command=None if cmd is None else cmd[None, a:b],
+                zigzag_over_changes=over_changes,
+            )
+            parts.append(part)
+        return parts
+
+    (res,) = allowance(v, command)
+    assert res.zigzag_v[0, -1] == pytest.approx(1.0, rel=0.02)
+    # by default the allowance is the samples' own zigzag, the activity as measured: it does not see it
+    (default,) = allowance(v, command, over_changes=False)
+    assert default.zigzag_v[0, -1] < 0.1
+    np.testing.assert_array_equal(default.zigzag_v[0], input_activity(t, v, 0.5)[0])
+    # without the command, a change is any change of the input: the wobble next to each jump hides it
+    (blind,) = allowance(v, None)
+    assert blind.zigzag_v[0, -1] < 0.1
+    # a staircase of the same updates is no zigzag
+    stairs = 0.3 + 0.002 * update
+    (up,) = allowance(stairs * 14.0, stairs)
+    assert np.max(up.zigzag_v) == 0.0
+    # in calls of uneven lengths (a command's repeats cut anywhere), the same allowance
+    parts = allowance(v, command, cuts=(0, 7, 8, 13, 301, 302, 640, t.size))
+    np.testing.assert_allclose(
+        np.concatenate([p.zigzag_v[0] for p in parts]), res.zigzag_v[0], rtol=1e-9, atol=1e-12
+    )
 
 
 def test_warm_mask_restarts_after_idle() -> None:

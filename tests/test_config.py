@@ -89,6 +89,7 @@ def test_not_toml_and_missing(tmp_path: Path) -> None:
         ("[persistence]\nmax_depth = 0.5\n", "persistence.max_depth"),
         ("[steady]\nslow_factor = 0.5\n", "steady.slow_factor"),
         ('[steady]\nkind = "balance"\nstep_sigmas = -1\n', "steady.step_sigmas"),
+        ('[steady]\nkind = "balance"\nstep_over_changes = 2\n', "steady.step_over_changes"),
         ("[profile]\nslow_band_fraction = 1.5\n", "profile.slow_band_fraction"),
         ("[profile]\nconditions_reach = 0.5\n", "profile.conditions_reach"),
         ("[profile]\nconditions_growth = -1\n", "profile.conditions_growth"),

@@ -204,14 +204,15 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
 
 
 @pytest.mark.parametrize(
-    "limited, step_sigmas, against, torque_spread, slow_siblings",
+    "limited, step_sigmas, against, torque_spread, slow_siblings, over_changes",
     [
-        (False, 0.0, False, 0.0, 0.0),
-        (True, 0.0, False, 0.0, 0.0),
-        (True, 1.0, False, 0.0, 0.0),
-        (True, 0.0, True, 0.0, 0.0),
-        (True, 0.0, False, 1.0, 0.0),
-        (True, 0.0, False, 0.0, 0.03),
+        (False, 0.0, False, 0.0, 0.0, 0.0),
+        (True, 0.0, False, 0.0, 0.0, 0.0),
+        (True, 1.0, False, 0.0, 0.0, 0.0),
+        (True, 0.0, True, 0.0, 0.0, 0.0),
+        (True, 0.0, False, 1.0, 0.0, 0.0),
+        (True, 0.0, False, 0.0, 0.03, 0.0),
+        (True, 0.0, False, 0.0, 0.0, 1.0),
     ],
     ids=[
         "within the conditions",
@@ -220,10 +221,11 @@ def test_motors_in_one_call_give_what_one_call_per_motor_gives(
         "the speed against the siblings' prediction",
         "the torque's band grown by its siblings' spread",
         "the slow look's bands as its siblings run",
+        "a step's allowance over the command's changes",
     ],
 )
 def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
-    paper_motor, limited, step_sigmas, against, torque_spread, slow_siblings
+    paper_motor, limited, step_sigmas, against, torque_spread, slow_siblings, over_changes
 ) -> None:
     """With the torque judged against the siblings (diagnosis/siblings.py), a motor's results depend on
     the others': batches cut in the order samples arrive (time, then motor) through
@@ -242,7 +244,10 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
     mean square (each motor's low-passed by the live noise with a carry of its own, the median the
     stage's: rules/tree.py, "The slow look as its siblings run"), small enough here that it names
     samples the motor's own slow bands leave NORMAL, and none before a sibling's mean holds a time
-    constant's worth of samples."""
+    constant's worth of samples. ``over_changes``: a step's allowance the zigzag over the command's
+    changes (model/balance.py, ``change_zigzag_rows``), its low-passes, last change and command carried
+    between batches (this window's steps are the same either way: the allowance's own carry is checked
+    in calls cut anywhere in tests/test_balance_rule.py)."""
     motors = _window(lost=False)
     from mav_motor_health.diagnosis.pipeline import diagnose
     from mav_motor_health.telemetry.table import TelemetryTable
@@ -250,9 +255,12 @@ def test_the_vehicle_stage_gives_the_same_in_batches_as_whole_logs(
     # each motor on its own unless the case says (the shipped profile judges against the prediction)
     base = dataclasses.replace(load_profile("flight_vehicle"), speed_against_siblings=0.0)
     profile = base
-    if step_sigmas:
+    if step_sigmas or over_changes:
         profile = dataclasses.replace(
-            profile, steady=dataclasses.replace(profile.steady, step_sigmas=step_sigmas)
+            profile,
+            steady=dataclasses.replace(
+                profile.steady, step_sigmas=step_sigmas, step_over_changes=over_changes
+            ),
         )
     noise = stage_noise(motors)
     if torque_spread:

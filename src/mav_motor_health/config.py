@@ -256,6 +256,7 @@ _STEADY_RANGES: dict[str, tuple[float | None, float | None, str]] = {
     "excursion_weight": (0.0, 1.0, ""),
     "excursion_pairing_weight": (0.0, 1.0, ""),
     "step_sigmas": (0.0, 1000.0, ""),
+    "step_over_changes": (0.0, 1.0, ""),
 }
 
 

@@ -269,9 +269,8 @@ def vehicle_stage(
     where a motor is judged against its siblings' (its noise was measured so), the deviations' live
     noise where ``profile`` grows its bands as the siblings run (``conditions_siblings``), each motor's slow
     torque average where its slow look is bounded by the siblings' spread (``torque_slow_siblings``), the
-    voltage residual where the balances are read apart (``equation_bands``) and the noise has the voltage's,
-    each motor's slow voltage average's mean square where an open transistor is read in it
-    (``voltage_slow_siblings``, :mod:`.rules.voltage`), the speed
+    voltage residual and each motor's slow voltage average's mean square where an open transistor is read
+    in them (``voltage_slow_siblings``, :mod:`.rules.voltage`) and the noise has the voltage's, the speed
     deviation where it judges the speed against the siblings' prediction (``speed_against_siblings``) and
     the noise gives their covariance (:mod:`.prediction`; a sibling departing by more than the sequential
     test's reference σ is left out of the others'); None: none of them, no stage. Motors not in
@@ -287,12 +286,11 @@ def vehicle_stage(
             quantities += ["slow_ms_speed", "slow_ms_current"]
         if profile.torque_slow_as_siblings and "torque_residual_nm" in quantities:
             quantities.append("torque_slow_raw_nm")
-        if profile.equation_bands > 0 and any(n.voltage is not None for n in noise.values()):
-            # the voltage against its siblings, averaged slowly (rules/equations.py): identification
-            # measures its noise, and an open transistor is read in it where the profile asks (rules/voltage.py)
-            quantities.append("voltage_residual_v")
-        if profile.voltage_slow_as_siblings:
-            quantities.append("slow_ms_voltage")
+        if profile.voltage_slow_as_siblings and any(n.voltage is not None for n in noise.values()):
+            # the voltage against its siblings, averaged slowly (rules/equations.py), where an open
+            # transistor is read in it (rules/voltage.py; identification's profile does, and measures its
+            # noise so): a profile without that look leaves the voltage to each motor
+            quantities += ["voltage_residual_v", "slow_ms_voltage"]
         if profile.speed_against_siblings > 0:
             prediction = SiblingPrediction.of(
                 {m: n.speed_covariance for m, n in noise.items()},

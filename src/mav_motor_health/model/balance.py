@@ -69,13 +69,20 @@ of ``e²`` (down ``e`` and up again), whichever is larger. The balance rule
 scales it by √(sample interval / 40 ms): the noise of an average grows as √(interval) for the same
 averaging time, so an ESC that reports at 10 Hz counts as more active than one at 50 Hz with the same
 input.
+
+What the balance rule allows an input step beyond its zigzag (``zigzag_v``) is the activity as measured,
+or, where the rule asks (``steady.step_over_changes``, off in the shipped profiles), the zigzag over the
+input's *changes* (:func:`change_zigzag_rows`): the command's changes, however many ESC reports repeat one
+command in between. A log pairs each report with the latest command it has; where an ESC reports five
+times per logged command, most samples repeat an input, and the samples' zigzag sees a change next to a
+repeat, never two changes in a row (docs/flight.md, "The step's allowance over the command's changes").
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -118,6 +125,11 @@ class ActivityCarry:
     slow: ResponseCarry = field(default_factory=ResponseCarry)
     last_v: float = float("nan")
     last_dv: float = float("nan")
+    #: the zigzag over the input's changes (:func:`change_zigzag_rows`): its two low-passes and the last change
+    changes: ResponseCarry = field(default_factory=ResponseCarry)
+    changes_slow: ResponseCarry = field(default_factory=ResponseCarry)
+    last_change_v: float = float("nan")
+    last_command: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -147,7 +159,7 @@ class BalanceResult:
     omega_mean_rad_s: FloatArray  # low-passed measured speed
     current_mean_a: FloatArray  # low-passed measured current
     activity_v: FloatArray  # the input activity, scaled by √(sample interval / INTERVAL_REF_S)
-    zigzag_v: FloatArray  # the input activity as measured (how far the input jumps between samples)
+    zigzag_v: FloatArray  # how far the input jumps (the activity as measured, or over its changes): a step's allowance
     tau_s: FloatArray  # the low-pass time constant at each sample
     torque_residual_nm: FloatArray  # low-passed r_T, the torque the model cannot account for
     voltage_residual_v: FloatArray  # low-passed r_V, the voltage the model cannot account for
@@ -205,6 +217,58 @@ def _zigzag_rows(v: FloatArray, carries: list[ActivityCarry]) -> tuple[FloatArra
     prev_dv = previous(dv, [c.last_dv for c in carries])
     zigzag = np.maximum(0.0, -dv * prev_dv)
     return np.where(np.isfinite(zigzag), zigzag, 0.0), dv
+
+
+def change_zigzag_rows(
+    dv: FloatArray,
+    command: FloatArray | None,
+    excursion_v: FloatArray | None,
+    carries: list[ActivityCarry],
+    counts: list[int],
+) -> tuple[FloatArray, list[float], list[float]]:
+    """The zigzag over the input's changes: ``max(0, −ΔV_n·ΔV_last)`` at each sample whose input changed,
+    ``ΔV_last`` the last change before it, however many samples repeated one input in between, and held
+    from one change to the next (a step in time that the low-pass averages over time, as it averages the
+    samples' zigzag; 0 before the first); each row's last change and last command (the carries' where
+    none). With ``command`` (what the log paired each sample with) the input changed where the command
+    did: the bus voltage moves the input a little at every sample, and a jump of the command next to such
+    a wobble is no zigzag.
+
+    A log pairs each ESC report with the latest command it has: where the ESC reports several times per
+    command (held-out world 1009: 50 Hz reports, commands at 10 Hz), most samples repeat an input and
+    :func:`_zigzag_rows` sees a change next to a repeat, never two changes, while the command jumps by a
+    fifth of the bus between its updates (``balance_deviations_rows``' ``zigzag_v``, the step threshold's
+    allowance: docs/flight.md, "The step's allowance over the input's changes"). An excursion (the input
+    went and came back between two samples) is a change and a zigzag of ``e²``, as in :func:`_zigzag_rows`.
+    """
+    rows, n = dv.shape
+    changed = np.isfinite(dv) & (dv != 0.0)
+    last_command = [c.last_command for c in carries]
+    if command is not None:
+        cmd = np.asarray(command, dtype=float)
+        changed &= ~(cmd == previous(cmd, last_command))  # (NaN before the first: a change)
+        last_command = [
+            old if new is None or not math.isfinite(new) else new
+            for old, new in zip(last_command, last_of(cmd, counts))
+        ]
+    carried = np.array([c.last_change_v for c in carries], dtype=float)[:, None]
+    place = np.where(changed, np.arange(n)[None, :], -1)
+    np.maximum.accumulate(place, axis=1, out=place)
+    before = np.concatenate([np.full((rows, 1), -1), place[:, :-1]], axis=1)  # the last change before
+    last = np.where(before >= 0, np.take_along_axis(dv, np.maximum(before, 0), axis=1), carried)
+    zigzag = np.maximum(0.0, nan_to_zero(-dv * last))
+    ends = place[:, -1]
+    final = np.where(ends >= 0, dv[np.arange(rows), np.maximum(ends, 0)], carried[:, 0])
+    if excursion_v is not None:
+        e2 = nan_to_zero(np.asarray(excursion_v, dtype=float)) ** 2
+        zigzag = np.fmax(zigzag, e2)
+        changed |= e2 > 0
+        place = np.where(changed, np.arange(n)[None, :], -1)
+        np.maximum.accumulate(place, axis=1, out=place)
+    # held between changes: the value at the latest change, the carried one before the call's first
+    held = np.array([nan_to_zero(np.asarray(c.changes.input, dtype=float)) for c in carries], dtype=float)
+    held = np.where(place >= 0, np.take_along_axis(zigzag, np.maximum(place, 0), axis=1), held[:, None])
+    return held, final.tolist(), last_command
 
 
 def _activity_rows(
@@ -385,6 +449,8 @@ def balance_deviations_rows(
     duty: FloatArray | None = None,
     input_excursion_v: FloatArray | None = None,
     torque_through_duty: Sequence[bool] | None = None,
+    command: FloatArray | None = None,
+    zigzag_over_changes: bool = False,
 ) -> tuple[BalanceResult, list[BalanceCarry]]:
     """:func:`balance_deviations` of several motors of one model at once: rows of samples (2-D), one
     carry per row; ``lengths`` each row's number of samples (None: all; the rest is padding after them).
@@ -392,7 +458,10 @@ def balance_deviations_rows(
     went beyond the two held inputs since the sample before (module doc, "input activity"; None: not
     at all). ``torque_through_duty``: per row, whether ``current_a`` is an input current over the duty
     (``input_current_a`` and ``duty`` given): the torque then reads the motor current as
-    ``mean(s)/mean(d)`` (module doc, "The two equations apart"); None: no row."""
+    ``mean(s)/mean(d)`` (module doc, "The two equations apart"); None: no row. ``zigzag_over_changes``:
+    the result's ``zigzag_v`` (the balance rule's step allowance) is the zigzag over the changes of
+    ``command`` (:func:`change_zigzag_rows`; the command None: over the input's changes), not the
+    activity as measured (module doc)."""
     t, v, w, i = time_s, voltage_v, omega_rad_s, current_a
     rows, n = t.shape
     counts = [n] * rows if lengths is None else lengths
@@ -404,26 +473,54 @@ def balance_deviations_rows(
     # the input activity's two low-passes (input_activity_rows) and the interval's in one call
     activity_carries = [c.activity for c in carries]
     zigzag_in, dv = _zigzag_rows(v, activity_carries)
+    excursion = None
     if input_excursion_v is not None:
         # an input that went and came back between two samples zigzagged by its excursion e (down e and
         # up e: −ΔV_n·ΔV_(n−1) = e²), though both samples' inputs are alike
         excursion = nan_to_zero(np.asarray(input_excursion_v, dtype=float))
         zigzag_in = np.fmax(zigzag_in, excursion * excursion)
-    low_passed, low_pass_carries = first_order_responses(
-        t,
-        np.concatenate([zigzag_in, zigzag_in, gaps]),
-        np.repeat([activity_tau_s, SLOW_FALL * activity_tau_s, INTERVAL_TAU_S], rows).reshape(-1, 1),
+    # the step's allowance where asked (``zigzag_over_changes``): the zigzag over the command's changes,
+    # low-passed as the activity is, in the same call; else the activity as measured
+    over_changes = zigzag_over_changes
+    targets, taus = [zigzag_in, zigzag_in, gaps], [activity_tau_s, SLOW_FALL * activity_tau_s, INTERVAL_TAU_S]
+    responses = (
         [c.response for c in activity_carries]
         + [c.slow for c in activity_carries]
-        + [c.interval for c in carries],
-        counts * 3,
+        + [c.interval for c in carries]
+    )
+    if over_changes:
+        changes_in, last_changes, last_commands = change_zigzag_rows(
+            dv, command, excursion, activity_carries, counts
+        )
+        targets += [changes_in, changes_in]
+        taus += [activity_tau_s, SLOW_FALL * activity_tau_s]
+        responses += [c.changes for c in activity_carries] + [c.changes_slow for c in activity_carries]
+    low_passed, low_pass_carries = first_order_responses(
+        t,
+        np.concatenate(targets),
+        np.repeat(taus, rows).reshape(-1, 1),
+        responses,
+        counts * len(targets),
     )
     activity, c_a = _activity_rows(
         v, dv, low_passed[: 2 * rows], low_pass_carries[: 2 * rows], activity_carries, counts
     )
-    interval, c_dt = low_passed[2 * rows :], low_pass_carries[2 * rows :]
+    interval, c_dt = low_passed[2 * rows : 3 * rows], low_pass_carries[2 * rows : 3 * rows]
     interval = np.where(np.isfinite(interval) & (interval > 0), interval, INTERVAL_REF_S)
     zigzag = activity
+    if over_changes:
+        changes = low_passed[3 * rows :]
+        zigzag = np.sqrt(np.maximum(np.maximum(changes[:rows], changes[rows:]), 0.0))
+        c_a = [
+            replace(
+                c,
+                changes=low_pass_carries[3 * rows + r],
+                changes_slow=low_pass_carries[4 * rows + r],
+                last_change_v=x,
+                last_command=y,
+            )
+            for r, (c, x, y) in enumerate(zip(c_a, last_changes, last_commands))
+        ]
     activity = activity * np.sqrt(interval / INTERVAL_REF_S)
     tau: FloatArray | float = tau_s
     if np.any(np.asarray(activity_ref_v) > 0):  # (per sample where the rule scales with the bus voltage)

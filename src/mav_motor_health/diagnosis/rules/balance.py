@@ -92,6 +92,13 @@ class BalanceRule(CompareRule):
     #: noise has no σ to count in); ``flight_vehicle`` ships 5 (docs/flight.md "A step in the motor's own
     #: noise", measured over twenty healthy hours)
     step_sigmas: float = 0.0
+    #: 1: a step's allowance beyond ``step_v`` is three times the zigzag over the command's changes, however
+    #: many ESC reports repeat one command (model/balance.py, ``change_zigzag_rows``); 0: over the samples
+    #: (the default, and the shipped profiles': measured on the held-out worlds with it on, it settled world
+    #: 1009's identification flight and named most of its misses, but a ramp of the command by steps each
+    #: within the allowance went unwaited, and on development world 3 the motors taking over a damaged
+    #: propeller's load were named F3.1: docs/flight.md, "The step's allowance over the command's changes")
+    step_over_changes: float = 0.0
 
     def validate(self) -> None:
         check_settling(self.step_v, self.settle_s)
@@ -115,7 +122,7 @@ class BalanceRule(CompareRule):
             raise ConfigError(
                 f"{self.step_sigmas!r}", key="steady.step_sigmas", expected="a number of sigmas >= 0 (0: off)"
             )
-        for name in ("excursion_weight", "excursion_pairing_weight"):
+        for name in ("excursion_weight", "excursion_pairing_weight", "step_over_changes"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ConfigError(
                     f"{getattr(self, name)!r}", key=f"steady.{name}", expected="a weight 0 <= w <= 1"
@@ -161,6 +168,8 @@ class BalanceRule(CompareRule):
             torque_through_duty=None
             if frame.noise is None
             else [n.torque is not None and n.torque.through_duty for n in frame.noise],
+            command=command,
+            zigzag_over_changes=self.step_over_changes > 0,
         )
         omega_pred, current_pred = bal.omega_model_rad_s, bal.current_model_a
         # A stalled motor: the speed itself (the lower of the sample and its low-pass, so that a
@@ -191,7 +200,9 @@ class BalanceRule(CompareRule):
         current_seen = np.where(np.isfinite(current_in), current_seen, np.nan)
         # An input step (larger than step_v plus a few times the input's zigzag, which in gusty air
         # is no step at all) puts two operating points into the low-passes: judge after settle_s. A new
-        # stream (the first sample, or after a gap) waits until the activity is known too.
+        # stream (the first sample, or after a gap) waits until the activity is known too. Where asked
+        # (step_over_changes), the zigzag over the command's changes, however many reports repeat one
+        # command (model/balance.py, change_zigzag_rows: an ESC reporting at 50 Hz, commands logged at 10 Hz)
         step_v = self.step_v * volts + 3.0 * nan_to_zero(bal.zigzag_v)  # the jumps as measured, not scaled
         # A motor whose low-passed input is at idle (below min_command: spin-down, braking with its current
         # unread) restarts the wait: when it comes back the low-passes still hold the idle. The low-passed
