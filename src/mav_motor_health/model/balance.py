@@ -238,7 +238,7 @@ def change_zigzag_rows(
     command (held-out world 1009: 50 Hz reports, commands at 10 Hz), most samples repeat an input and
     :func:`_zigzag_rows` sees a change next to a repeat, never two changes, while the command jumps by a
     fifth of the bus between its updates (``balance_deviations_rows``' ``zigzag_v``, the step threshold's
-    allowance: docs/flight.md, "The step's allowance over the input's changes"). An excursion (the input
+    allowance: docs/flight.md, "The step's allowance over the command's changes"). An excursion (the input
     went and came back between two samples) is a change and a zigzag of ``e²``, as in :func:`_zigzag_rows`.
     """
     rows, n = dv.shape
@@ -481,14 +481,13 @@ def balance_deviations_rows(
         zigzag_in = np.fmax(zigzag_in, excursion * excursion)
     # the step's allowance where asked (``zigzag_over_changes``): the zigzag over the command's changes,
     # low-passed as the activity is, in the same call; else the activity as measured
-    over_changes = zigzag_over_changes
     targets, taus = [zigzag_in, zigzag_in, gaps], [activity_tau_s, SLOW_FALL * activity_tau_s, INTERVAL_TAU_S]
     responses = (
         [c.response for c in activity_carries]
         + [c.slow for c in activity_carries]
         + [c.interval for c in carries]
     )
-    if over_changes:
+    if zigzag_over_changes:
         changes_in, last_changes, last_commands = change_zigzag_rows(
             dv, command, excursion, activity_carries, counts
         )
@@ -508,7 +507,7 @@ def balance_deviations_rows(
     interval, c_dt = low_passed[2 * rows : 3 * rows], low_pass_carries[2 * rows : 3 * rows]
     interval = np.where(np.isfinite(interval) & (interval > 0), interval, INTERVAL_REF_S)
     zigzag = activity
-    if over_changes:
+    if zigzag_over_changes:
         changes = low_passed[3 * rows :]
         zigzag = np.sqrt(np.maximum(np.maximum(changes[:rows], changes[rows:]), 0.0))
         c_a = [
