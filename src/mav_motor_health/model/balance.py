@@ -89,7 +89,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.special import ndtr, ndtri
 
 from .._arrays import broadcast_to, nan_to_zero
-from .dynamics import ResponseCarry, first_order_responses, last_of, previous
+from .dynamics import ResponseCarry, first_order_responses, last_of, latest_marked, previous
 from .equations import current_from_speed, steady_state
 from .params import MotorParams
 
@@ -241,7 +241,7 @@ def change_zigzag_rows(
     allowance: docs/flight.md, "The step's allowance over the command's changes"). An excursion (the input
     went and came back between two samples) is a change and a zigzag of ``e²``, as in :func:`_zigzag_rows`.
     """
-    rows, n = dv.shape
+    rows = dv.shape[0]
     changed = np.isfinite(dv) & (dv != 0.0)
     last_command = [c.last_command for c in carries]
     if command is not None:
@@ -252,9 +252,7 @@ def change_zigzag_rows(
             for old, new in zip(last_command, last_of(cmd, counts))
         ]
     carried = np.array([c.last_change_v for c in carries], dtype=float)[:, None]
-    place = np.where(changed, np.arange(n)[None, :], -1)
-    np.maximum.accumulate(place, axis=1, out=place)
-    before = np.concatenate([np.full((rows, 1), -1), place[:, :-1]], axis=1)  # the last change before
+    place, before = latest_marked(changed)  # each sample's latest change, and the one before it
     last = np.where(before >= 0, np.take_along_axis(dv, np.maximum(before, 0), axis=1), carried)
     zigzag = np.maximum(0.0, nan_to_zero(-dv * last))
     ends = place[:, -1]
@@ -262,9 +260,7 @@ def change_zigzag_rows(
     if excursion_v is not None:
         e2 = nan_to_zero(np.asarray(excursion_v, dtype=float)) ** 2
         zigzag = np.fmax(zigzag, e2)
-        changed |= e2 > 0
-        place = np.where(changed, np.arange(n)[None, :], -1)
-        np.maximum.accumulate(place, axis=1, out=place)
+        place, _ = latest_marked(changed | (e2 > 0))
     # held between changes: the value at the latest change, the carried one before the call's first
     held = np.array([nan_to_zero(np.asarray(c.changes.input, dtype=float)) for c in carries], dtype=float)
     held = np.where(place >= 0, np.take_along_axis(zigzag, np.maximum(place, 0), axis=1), held[:, None])

@@ -326,14 +326,20 @@ def marked_before(
     """For rows of samples (2-D) and the samples ``marked`` in them: each sample's latest marked sample
     at or before it and the latest strictly before it (-1: none in the rows yet), and that one's time
     (the row's ``carried_s`` where there is none: the last marked time of the calls before)."""
-    latest = np.maximum.accumulate(np.where(marked, np.arange(marked.shape[1])[None, :], -1), axis=1)
-    before = previous(latest, -1).astype(np.intp)
+    latest, before = latest_marked(marked)
     time_before = np.where(
         before >= 0,
         np.take_along_axis(time_s, np.maximum(before, 0), axis=1),
         np.asarray(carried_s, dtype=float)[:, None],
     )
     return latest, before, time_before
+
+
+def latest_marked(marked: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """For rows of samples (2-D): each sample's latest ``marked`` sample at or before it, and the latest
+    strictly before it (-1: none in the rows yet)."""
+    latest = np.maximum.accumulate(np.where(marked, np.arange(marked.shape[1])[None, :], -1), axis=1)
+    return latest, previous(latest, -1).astype(np.intp)
 
 
 def last_of(values: NDArray, lengths: Sequence[int] | NDArray[np.integer]) -> list:
