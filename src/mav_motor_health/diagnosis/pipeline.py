@@ -377,6 +377,16 @@ def run_vehicle_stage(
             for name, _ in STAGE_QUANTITIES
             if name in stage.quantities and any(getattr(f, name) is not None for f in frames)
         }
+        if "torque_residual_nm" in given:
+            # a sibling in its own step's transient is no reference for the others' torque (siblings.py,
+            # "A sibling in its own step's transient")
+            in_transient = np.zeros(given["torque_residual_nm"].shape, dtype=bool)
+            r = 0
+            for f in frames:
+                assert f is not None
+                in_transient[r : r + f.shape[0], : f.shape[1]] = _torque_transient(f)
+                r += f.shape[0]
+            given["torque_residual_nm"] = np.where(in_transient, np.nan, given["torque_residual_nm"])
         found = stage.references(
             every,
             stacked("time_s"),
@@ -397,6 +407,30 @@ def run_vehicle_stage(
                 references[id(call)][into] = found[name][r : r + rows, :n]
                 r += rows
     return [call.finish(references.get(id(call))) for _, call in calls]
+
+
+def _torque_transient(frame: Frame) -> NDArray[np.bool_]:
+    """Where each row's motor waits after its own input step (within the rule's ``settle_s``) and its own
+    torque balance departs from its offset by more than the band it is judged in there: ``noise_bands``
+    times its torque σ at the sample's activity and pairing, widened after the step as identification
+    measured (not grown by the air); such a torque is the step's transient, no reference for its siblings
+    (siblings.py, "A sibling in its own step's transient"). Nowhere on a motor whose noise has no torque's."""
+    settle_s = float(getattr(frame.profile.steady, "settle_s", 0.0))
+    if (
+        frame.noise is None
+        or frame.torque_residual_nm is None
+        or frame.since_step_s is None
+        or not settle_s > 0
+        or not frame.profile.noise_bands > 0
+    ):
+        return np.zeros(frame.shape, dtype=bool)
+    activity = np.zeros(frame.shape) if frame.activity_v is None else frame.activity_v
+    z = frame.noise_as_rows().own_torque_z(frame.torque_residual_nm, activity, frame.pairing_error_rad_s)
+    after = frame.after_step_factor
+    with np.errstate(invalid="ignore"):
+        if after is not None:  # (NaN: the widening there not measured; the band as settled)
+            z = z / np.where(np.isfinite(after), after, 1.0)
+        return (frame.since_step_s < settle_s) & (np.abs(z) > frame.profile.noise_bands)
 
 
 def diagnose_motors(

@@ -34,6 +34,25 @@ speed lay beyond its identified range (widened by the profile's ``range_margin``
 The motors compensating a failed one run beyond their range together, at one speed, and stay each
 other's references.
 
+**A sibling in its own step's transient** (the torque). A sibling's torque residual is no reference
+where it waits after its own input step (within the balance rule's ``settle_s``) and departs from its
+offset by more than the band it is judged in there (``noise_bands`` times its torque σ at the sample's
+activity and pairing, widened after a step as identification measured, not grown by the air): the
+low-passed balance then carries that step's transient (the inertia term of a spin-up or run-down the
+low-pass smears, an input current read through a duty that just jumped), not the air all six share. On
+development world 3, with a damaged propeller on motor 3, motors 1 and 6 ran down from a command of 0.74
+to 0.23 in the compensation and read +1.1 to +1.6 N·m for half a second (their hover torque is about
+0.19 N·m), while the two motors at a steady command read −0.03; beyond the identified speeds, the faulty
+motor and the one at idle were no reference for them, so the two running down were two of their three
+siblings, the median +1.1 N·m: motor 2 read F3.1 on 43 of its judged samples after onset, and with the
+``step_over_changes`` option on, which counts more of them settled, it was announced (docs/flight.md,
+"... a sibling in its own step's transient"). Every sibling in its wait left out instead would leave a
+motor without three references whenever the air keeps all of them stepping, and there its torque is not
+read (development world 4's friction in gusty air, announced 8 s after onset, was then not announced in a
+30-s flight); a sibling within its band is a reference as before.
+The motor's own residual is judged as before; identification measures the torque against its siblings
+the same way, so its noise is that of what is judged.
+
 The same stage takes a second look across motors where the profile grows its bands beyond the noise's
 conditions as the siblings run (``conditions_siblings``, :mod:`.rules.bands`): each motor's low-passed
 square of its deviations in its identified σ, speed and current, whose siblings' median says how wide

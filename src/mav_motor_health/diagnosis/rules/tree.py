@@ -3,7 +3,9 @@ look where the tree saw nothing.
 
 **The stall split's scale.** A stalled motor's current tells an open phase (F2.1, little) from a lost
 back-EMF signal (F4.2, more); with the profile's ``stall_split_typical`` the split is that multiple of the
-motor's typical current in flight (the paper's 6 A over its motor's 3.8 A at hover). Identification
+motor's typical current in flight (the shipped profile: 1.27, halfway in ratio between the paper's two
+stalls, about 3 A and 7.7 A, over its motor's 3.8 A at hover; docs/flight.md, "The stall split halfway
+between the paper's stalls"). Identification
 measures the typical current on its healthy flight; but where the ESC reports its *input* current, the
 reading divided by the duty carries the duty ripple's copper loss, ``V·σ_d²/R``, which grows with the air
 (``benchmarks/bench_input_ripple.py``), while a stalled motor's command sits at full duty, with no
