@@ -411,8 +411,8 @@ def run_vehicle_stage(
 
 def _torque_transient(frame: Frame) -> NDArray[np.bool_]:
     """Where each row's motor waits after its own input step (within the rule's ``settle_s``) and its own
-    torque balance departs from its offset by more than the band it is judged in there: ``noise_bands``
-    times its torque σ at the sample's activity and pairing, widened after the step as identification
+    torque balance departs from its offset by more than the band it is judged in there: ``equation_bands``
+    (else ``noise_bands``) times its torque σ at the sample's activity and pairing, widened after the step as identification
     measured (not grown by the air); such a torque is the step's transient, no reference for its siblings
     (siblings.py, "A sibling in its own step's transient"). Nowhere on a motor whose noise has no torque's."""
     settle_s = float(getattr(frame.profile.steady, "settle_s", 0.0))
@@ -430,7 +430,8 @@ def _torque_transient(frame: Frame) -> NDArray[np.bool_]:
     with np.errstate(invalid="ignore"):
         if after is not None:  # (NaN: the widening there not measured; the band as settled)
             z = z / np.where(np.isfinite(after), after, 1.0)
-        return (frame.since_step_s < settle_s) & (np.abs(z) > frame.profile.noise_bands)
+        bands = frame.profile.equation_bands or frame.profile.noise_bands
+        return (frame.since_step_s < settle_s) & (np.abs(z) > bands)
 
 
 def diagnose_motors(

@@ -36,7 +36,7 @@ other's references.
 
 **A sibling in its own step's transient** (the torque). A sibling's torque residual is no reference
 where it waits after its own input step (within the balance rule's ``settle_s``) and departs from its
-offset by more than the band it is judged in there (``noise_bands`` times its torque σ at the sample's
+offset by more than the band it is judged in there (``equation_bands`` times its torque σ at the sample's
 activity and pairing, widened after a step as identification measured, not grown by the air): the
 low-passed balance then carries that step's transient (the inertia term of a spin-up or run-down the
 low-pass smears, an input current read through a duty that just jumped), not the air all six share. On
