@@ -23,7 +23,7 @@ therefore announce the same states, where the agent's batches come in the order 
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -359,12 +359,13 @@ def run_vehicle_stage(
         frames = [call.frame for _, call in staged]
         width = max(f.shape[1] for f in frames if f is not None)
 
-        def stacked(name: str, fill: float | bool = np.nan) -> NDArray[Any]:
+        def stacked(name: str | Callable[[Frame], Any], fill: float | bool = np.nan) -> NDArray[Any]:
+            """A frame field (or what ``name`` gives of each frame) of every call, rows stacked."""
             out = np.full((sum(f.shape[0] for f in frames if f is not None), width), fill)
             r = 0
             for f in frames:
                 assert f is not None
-                values = getattr(f, name)
+                values = getattr(f, name) if isinstance(name, str) else name(f)
                 if values is not None:
                     out[r : r + f.shape[0], : f.shape[1]] = values
                 r += f.shape[0]
@@ -380,12 +381,7 @@ def run_vehicle_stage(
         if "torque_residual_nm" in given:
             # a sibling in its own step's transient is no reference for the others' torque (siblings.py,
             # "A sibling in its own step's transient")
-            in_transient = np.zeros(given["torque_residual_nm"].shape, dtype=bool)
-            r = 0
-            for f in frames:
-                assert f is not None
-                in_transient[r : r + f.shape[0], : f.shape[1]] = _torque_transient(f)
-                r += f.shape[0]
+            in_transient = stacked(_torque_transient, False)
             given["torque_residual_nm"] = np.where(in_transient, np.nan, given["torque_residual_nm"])
         found = stage.references(
             every,
