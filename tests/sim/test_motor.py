@@ -7,7 +7,6 @@ import pytest
 
 from mav_motor_health.errors import ConfigError
 from mav_motor_health.model.equations import steady_state
-from mav_motor_health.sim.battery import Battery, BatterySpec
 from mav_motor_health.sim.faults import FaultSpec, effects_at
 from mav_motor_health.sim.motor import MotorBank, MotorDynamics
 from mav_motor_health.sim.sensors import EscSensors, SensorSpec
@@ -137,41 +136,3 @@ def test_stall_is_reached_as_fast_as_the_paper_saw(paper_motor):
 def test_temperature_rises_with_load(paper_motor):
     bank = settle(paper_motor, np.array([4.2, 11.0]), seconds=60.0, dt=0.01)
     assert bank.motor_temp_c[1] > bank.motor_temp_c[0] > 20.0
-
-
-def test_the_bus_is_the_voltage_the_pack_and_its_load_agree_on():
-    # a load whose current moves with the voltage, I(V) = I0 + G·V, on a pack whose R·G is 3 (held-out
-    # world 1006's six motors at full duty): the terminal voltage solves V = OCV − R·I(V) in one step;
-    # stepped from the last voltage (V ← OCV − R·I(V_last)) it would swing with a gain of −3
-    r_ohm, g_s, i0_a = 0.09, 3.0 / 0.09, -400.0
-    battery = Battery(BatterySpec(cells=6, resistance_ohm=r_ohm))
-    ocv = battery.open_circuit_v()
-    exact = (ocv - r_ohm * i0_a) / (1.0 + r_ohm * g_s)
-    for _ in range(5):
-        v0, ocv_now = battery.voltage_v, battery.open_circuit_v()  # (the step's draw discharges the pack)
-        v = battery.step(i0_a + g_s * v0, 1e-3, conductance_s=g_s)
-        assert v == pytest.approx((ocv_now - r_ohm * i0_a) / (1.0 + r_ohm * g_s), rel=1e-12)
-        assert v == pytest.approx(ocv_now - r_ohm * (i0_a + g_s * v), rel=1e-12)
-    assert 0.5 * ocv < v < ocv
-    # without the load's conductance, the old update: the voltage it returns is off by R·G times the step
-    stepped = Battery(BatterySpec(cells=6, resistance_ohm=r_ohm))
-    v_last = exact + 0.1
-    stepped.voltage_v = v_last
-    assert stepped.step(i0_a + g_s * v_last, 1e-3) == pytest.approx(exact - 3.0 * 0.1, abs=0.01)
-
-
-def test_the_bank_s_conductance_is_how_its_current_moves_with_its_voltage(paper_motor):
-    dyn = MotorDynamics(paper_motor)
-    fx = effects_at([FaultSpec("F2.1", 2, 0.0)], 1.0, 3)
-    v = np.array([6.0, 9.0, 9.0])
-    currents = []
-    for dv in (0.0, 1e-3):
-        bank = MotorBank(dyn, 3, np.random.default_rng(7), omega0_rad_s=500.0)
-        bank.step(v + dv, 1e-3, fx)
-        currents.append(bank.current_a.copy())
-        if dv == 0.0:
-            g = bank.conductance_s.copy()
-    slope = (currents[1] - currents[0]) / 1e-3
-    assert g[0] == pytest.approx(slope[0], rel=1e-3) and g[2] == pytest.approx(slope[2], rel=1e-3)
-    assert g[0] > 0.5 / paper_motor.R_ohm  # mostly the winding's 1/R: the speed barely moves in a step
-    assert g[1] == 0.0  # the stalled motor's current is its own, not the bus's

@@ -14,7 +14,6 @@ from pymavlink import mavutil
 
 from mav_motor_health.cli import main
 from mav_motor_health.errors import ConfigError
-from mav_motor_health.evaluation.worlds import fly_flight, world_flights
 from mav_motor_health.model.equations import steady_state
 from mav_motor_health.model.esc import EscMap
 from mav_motor_health.model.vehicle import CURRENT_SIDES
@@ -310,24 +309,3 @@ def test_simulate_command_flies_a_world(tmp_path: Path, capsys: pytest.CaptureFi
     assert truth["world"]["seed"] == 12 and truth["faults"][0]["motor"] == 4
     assert main(["simulate", "world", "--out", str(tmp_path / "x.csv")]) == 2
     assert "--world SEED" in capsys.readouterr().err
-
-
-def test_a_small_pack_under_a_stalled_motor_keeps_a_steady_bus():
-    # held-out world 1006 (1.8 kg; six motors of 0.18 Ω on a 0.09-Ω pack), calm air, motor 3's phase
-    # open at 31.5 s: the other five driven hard, the pack's R times its load's conductance above 1. The bus
-    # every ESC reports sags under the load and stays there (before the battery solved for it: 0.3 to 40 V
-    # from one report to the next between 35 and 50 s, docs/simulator.md, "The bus and its load")
-    (flight,) = world_flights(1006, duration_s=60.0, healthy_flights=0, levels=["calm"], faults=["F2.1"])
-    record = fly_flight(flight)
-    world = record.world
-    assert world is not None and flight.onset_s == 31.48
-    ocv = world.cells * 4.2
-    bus = np.array([x.voltage_cv for x in record.esc]) / 100.0
-    t = np.array([x.time_s for x in record.esc])
-    after = t > flight.onset_s + 2.0
-    assert bus.max() < 1.05 * ocv and bus.min() > 0.6 * ocv
-    assert np.median(bus[after]) < np.median(bus[t < flight.onset_s]) - 1.0  # it sags under the load
-    # one bus: the six ESCs' reports within a millisecond read it within a few tenths of a volt
-    order = np.argsort(t, kind="stable")
-    same = np.diff(t[order]) < 1e-3
-    assert np.abs(np.diff(bus[order]))[same].max() < 0.5

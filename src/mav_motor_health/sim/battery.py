@@ -52,16 +52,8 @@ class Battery:
             return self.spec.supply_v
         return self.spec.cells * cell_open_circuit_v(self.soc)
 
-    def step(self, current_a: float, dt: float, conductance_s: float = 0.0) -> float:
-        """Draw ``current_a`` for ``dt`` seconds; returns the terminal voltage.
-
-        ``conductance_s`` (G = ∂I/∂V of the load, ≥ 0): ``current_a`` was drawn at the present terminal
-        voltage V₀, and the load's current moves with the voltage as I(V) = current_a + G·(V − V₀). The new
-        terminal voltage is then the one the pack and that load agree on, V = OCV − R·I(V) (solved, not
-        stepped): with V taken from the last step instead, the bus would be updated as
-        V ← OCV − R·I(V_last), an iteration whose gain is −R·G. A small pack under motors at full duty
-        has R·G above 1 (six motors of 0.18 Ω on 0.09 Ω: 3 at duty 1), and the bus then swung from 0 to
-        twice the pack's voltage from one step to the next (docs/simulator.md, "The bus and its load")."""
+    def step(self, current_a: float, dt: float) -> float:
+        """Draw ``current_a`` for ``dt`` seconds; returns the terminal voltage."""
         self.current_a = current_a
         sensed_a = current_a * self.spec.monitor_gain
         if math.isnan(self.monitor_current_a):
@@ -73,9 +65,7 @@ class Battery:
         if self.spec.supply_v is not None:
             self.voltage_v = self.spec.supply_v
         else:
-            r, g = self.spec.resistance_ohm, max(conductance_s, 0.0)
-            v_now = self.voltage_v
-            self.voltage_v = max((self.open_circuit_v() - r * (current_a - g * v_now)) / (1.0 + r * g), 0.0)
+            self.voltage_v = max(self.open_circuit_v() - self.spec.resistance_ohm * current_a, 0.0)
             used = current_a * dt / 3.6
             self.consumed_mah += used
             self.soc -= used / self.spec.capacity_mah

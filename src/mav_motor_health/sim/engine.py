@@ -223,8 +223,7 @@ class Simulation:
         self.bank.step(self.duty * bus, dt, fx)
         self.esc_current_a = esc_input_current_a(self.duty, self.bank.current_a)
         total = float(self.esc_current_a.sum()) + (self._avionics_a if self.body is not None else 0.0)
-        # the ESCs' input current moves with the bus as duty² × each motor's conductance (sim/battery.py)
-        self.battery.step(total, dt, float(np.dot(self.duty * self.duty, self.bank.conductance_s)))
+        self.battery.step(total, dt)
         if self.body is not None and self.frame is not None:
             w = self.bank.omega_rad_s
             thrust = self.frame.thrust_coeff * fx.thrust_factor * w * w

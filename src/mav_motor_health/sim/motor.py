@@ -94,8 +94,6 @@ class MotorBank:
         self._stall_phase_s = rng.uniform(0.0, 1.0, n) * dynamics.restart_period_s
         self._stall_wander_a = np.zeros(n)
         self._heat_dt = 0.0
-        #: ∂i/∂V of the last step per motor [S]: how its current moves with the voltage it was given
-        self.conductance_s = np.zeros(n)
 
     def step(self, voltage_v: FloatArray, dt: float, fx: FaultEffects) -> None:
         """Advance by ``dt`` with ``voltage_v`` applied (duty × bus voltage) under fault effects ``fx``."""
@@ -113,24 +111,15 @@ class MotorBank:
         load = (cp * wk1 + viscous) * w_pos + coulomb * turning
         drive = p.k_t * g_r * (v - p.k_e * w_pos)
         slope = g_r * (p.k_t * p.k_e) + k * cp * wk1 + viscous  # −d(drive − load)/dω
-        w_step = w_pos + dt * (drive - load) / (d.inertia_kg_m2 + dt * slope)
-        w_new = np.maximum(w_step, 0.0)
+        w_new = np.maximum(w_pos + dt * (drive - load) / (d.inertia_kg_m2 + dt * slope), 0.0)
         # Held at rest by friction unless the drive beats it.
-        held = ~turning & (drive <= coulomb)
-        w_new[held] = 0.0
+        w_new[~turning & (drive <= coulomb)] = 0.0
         i_new = g_r * (v - p.k_e * w_new)
-        # how the step's current moves with its input voltage (the step's own linearisation: the speed
-        # moves with it too, through the drive), for the bus the bank draws from (``conductance_s``)
-        moves = (w_step > 0.0) & ~held
-        dw_dv = np.where(moves, dt * p.k_t * g_r / (d.inertia_kg_m2 + dt * slope), 0.0)
-        conductance = np.where(voltage_v > 0.0, g_r * (1.0 - p.k_e * dw_dv), 0.0)
 
         if fx.any_stalled:
             w_new, i_new = self._stall_step(w_pos, i_new, w_new, cp, dt, fx)
-            conductance = np.where(fx.stalled, 0.0, conductance)  # a held rotor's current is its own
         else:
             self._stall_time_s[:] = 0.0
-        self.conductance_s = conductance
 
         self.omega_rad_s = w_new
         self.current_a = i_new
